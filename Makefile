@@ -1,0 +1,42 @@
+# bsms top-level Makefile. `make demo` and `make test` work as root on a fresh Debian 12 machine.
+BUILD ?= build
+JOBS  ?= $(shell nproc)
+RUNS  ?= runs
+SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+
+# Debian 12 packages the project needs (DESIGN.md, Dependencies).
+DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh-dev gmsh \
+        nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
+        libopenblas0-pthread gnuplot-nox
+
+.PHONY: deps build test demo bench format clean
+
+deps:
+	@missing=$$(for p in $(DEPS); do \
+	  dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q 'install ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:" $$missing; \
+	  $(SUDO) apt-get update -q && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -q --no-install-recommends $$missing; \
+	fi
+
+$(BUILD)/CMakeCache.txt: | deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release
+
+build: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS)
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) --timeout 1800
+
+demo: build
+	./scripts/demo.sh $(BUILD) $(RUNS)/demo
+
+bench: build
+	./scripts/bench.sh $(BUILD)
+
+format:
+	find src preprocess data models tests bench -name '*.cpp' -o -name '*.hpp' | xargs clang-format -i
+
+clean:
+	rm -rf $(BUILD)

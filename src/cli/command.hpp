@@ -1,0 +1,34 @@
+// Subcommand registry: each src/cli/cmd_*.cpp registers itself with BSMS_COMMAND, so adding a
+// subcommand touches one file. Registration order does not matter; --help lists by name.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace bsms::cli {
+
+struct Command {
+  std::string name;
+  std::string help;
+  // Adds options to `sub` and sets its callback. Errors are thrown (InputError -> exit 2).
+  std::function<void(CLI::App& sub)> setup;
+};
+
+std::vector<Command>& command_registry();
+
+struct CommandRegistrar {
+  explicit CommandRegistrar(Command command) { command_registry().push_back(std::move(command)); }
+};
+
+// Options most subcommands share.
+void add_threads_option(CLI::App& sub, int& threads);
+void add_set_option(CLI::App& sub, std::vector<std::string>& sets);
+
+}  // namespace bsms::cli
+
+#define BSMS_CONCAT_INNER(a, b) a##b
+#define BSMS_CONCAT(a, b) BSMS_CONCAT_INNER(a, b)
+#define BSMS_COMMAND(name, help, setup) \
+  static ::bsms::cli::CommandRegistrar BSMS_CONCAT(bsms_command_, __LINE__)({name, help, setup})

@@ -1,0 +1,45 @@
+// Template definitions for config.hpp.
+#pragma once
+
+#include <cmath>
+#include <type_traits>
+
+namespace bsms {
+
+template <class T>
+T JsonObjectReader::convert(const Json& value, const std::string& key) const {
+  const JsonContext where = context_.child(key);
+  try {
+    if constexpr (std::is_same_v<T, bool>) {
+      if (!value.is_boolean()) throw InputError(where.where() + " must be true or false");
+    } else if constexpr (std::is_integral_v<T>) {
+      if (!value.is_number_integer())
+        throw InputError(where.where() + " must be an integer, got " + value.dump());
+    } else if constexpr (std::is_floating_point_v<T>) {
+      if (!value.is_number()) throw InputError(where.where() + " must be a number, got " + value.dump());
+      const double v = value.get<double>();
+      if (!std::isfinite(v)) throw InputError(where.where() + " must be finite");
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      if (!value.is_string()) throw InputError(where.where() + " must be a string, got " + value.dump());
+    }
+    return value.get<T>();
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where.where() + " has the wrong type: " + e.what());
+  }
+}
+
+template <class T>
+T JsonObjectReader::get(const std::string& key) {
+  if (!object_.contains(key)) throw InputError(context_.file + ": missing required key '" + context_.child(key).path + "'");
+  used_.push_back(key);
+  return convert<T>(object_.at(key), key);
+}
+
+template <class T>
+T JsonObjectReader::opt(const std::string& key, const T& fallback) {
+  used_.push_back(key);
+  if (!object_.contains(key)) return fallback;
+  return convert<T>(object_.at(key), key);
+}
+
+}  // namespace bsms

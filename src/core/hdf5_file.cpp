@@ -1,0 +1,386 @@
+#include "core/hdf5_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cstring>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace bsms {
+namespace fs = std::filesystem;
+
+namespace {
+
+// HDF5 prints its own error stack by default; bsms reports errors itself.
+void silence_hdf5() {
+  static const bool once = [] {
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    return true;
+  }();
+  (void)once;
+}
+
+// Closes an HDF5 handle of any kind when it leaves scope.
+class Handle {
+ public:
+  explicit Handle(hid_t id = -1) : id_(id) {}
+  ~Handle() {
+    if (id_ >= 0) H5Idec_ref(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+};
+
+std::vector<std::string> split_path(const std::string& path) {
+  std::vector<std::string> parts;
+  std::stringstream in(path);
+  std::string part;
+  while (std::getline(in, part, '/'))
+    if (!part.empty()) parts.push_back(part);
+  return parts;
+}
+
+}  // namespace
+
+H5File::H5File(const std::string& path, Mode mode) : path_(path) {
+  silence_hdf5();
+  switch (mode) {
+    case Mode::kRead:
+      if (!fs::exists(path)) throw InputError(path + ": file not found");
+      if (H5Fis_hdf5(path.c_str()) <= 0) throw InputError(path + ": not an HDF5 file");
+      id_ = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+      if (id_ < 0) throw InputError(path + ": cannot open HDF5 file (corrupt or truncated?)");
+      break;
+    case Mode::kReadWrite:
+      if (!fs::exists(path)) throw InputError(path + ": file not found");
+      id_ = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+      if (id_ < 0) throw IoError(path + ": cannot open HDF5 file for writing");
+      writable_ = true;
+      break;
+    case Mode::kTruncate:
+      id_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+      if (id_ < 0) throw IoError(path + ": cannot create HDF5 file");
+      writable_ = true;
+      break;
+  }
+}
+
+H5File::~H5File() {
+  if (id_ >= 0) H5Fclose(id_);
+}
+
+H5File::H5File(H5File&& other) noexcept
+    : path_(std::move(other.path_)), id_(other.id_), writable_(other.writable_) {
+  other.id_ = -1;
+}
+
+H5File& H5File::operator=(H5File&& other) noexcept {
+  if (this != &other) {
+    if (id_ >= 0) H5Fclose(id_);
+    path_ = std::move(other.path_);
+    id_ = other.id_;
+    writable_ = other.writable_;
+    other.id_ = -1;
+  }
+  return *this;
+}
+
+void H5File::flush() {
+  if (id_ >= 0 && H5Fflush(id_, H5F_SCOPE_GLOBAL) < 0) throw IoError(path_ + ": flush failed");
+}
+
+void H5File::close() {
+  if (id_ >= 0) {
+    const herr_t status = H5Fclose(id_);
+    id_ = -1;
+    if (status < 0) throw IoError(path_ + ": close failed (disk full?)");
+  }
+}
+
+bool H5File::exists(const std::string& object) const {
+  if (object == "/" || object.empty()) return true;
+  std::string walked;
+  for (const auto& part : split_path(object)) {
+    walked += "/" + part;
+    if (H5Lexists(id_, walked.c_str(), H5P_DEFAULT) <= 0) return false;
+  }
+  return true;
+}
+
+void H5File::create_group(const std::string& group) {
+  std::string walked;
+  for (const auto& part : split_path(group)) {
+    walked += "/" + part;
+    if (H5Lexists(id_, walked.c_str(), H5P_DEFAULT) > 0) continue;
+    Handle g(H5Gcreate2(id_, walked.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    if (!g.ok()) throw IoError(path_ + ": cannot create group " + walked);
+  }
+}
+
+std::vector<std::string> H5File::list(const std::string& group) const {
+  std::vector<std::string> names;
+  Handle g(H5Gopen2(id_, group.c_str(), H5P_DEFAULT));
+  if (!g.ok()) throw InputError(path_ + ": missing group " + group);
+  H5G_info_t info{};
+  H5Gget_info(g.get(), &info);
+  for (hsize_t i = 0; i < info.nlinks; ++i) {
+    const ssize_t len = H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0,
+                                           H5P_DEFAULT);
+    std::string name(static_cast<size_t>(len), '\0');
+    H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), len + 1,
+                       H5P_DEFAULT);
+    names.push_back(name);
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+void H5File::remove(const std::string& object) {
+  if (H5Ldelete(id_, object.c_str(), H5P_DEFAULT) < 0)
+    throw IoError(path_ + ": cannot remove " + object);
+}
+
+void H5File::move(const std::string& from, const std::string& to) {
+  if (H5Lmove(id_, from.c_str(), id_, to.c_str(), H5P_DEFAULT, H5P_DEFAULT) < 0)
+    throw IoError(path_ + ": cannot move " + from + " to " + to);
+}
+
+template <class T>
+void H5File::write(const std::string& name, const T* data, const Shape& shape, hsize_t chunk_rows) {
+  const auto slash = name.rfind('/');
+  if (slash != std::string::npos && slash > 0) create_group(name.substr(0, slash));
+  if (H5Lexists(id_, name.c_str(), H5P_DEFAULT) > 0) remove(name);
+  Handle space(H5Screate_simple(static_cast<int>(shape.size()), shape.data(), nullptr));
+  Handle plist(H5Pcreate(H5P_DATASET_CREATE));
+  hsize_t total = 1;
+  for (hsize_t s : shape) total *= s;
+  if (chunk_rows > 0 && !shape.empty() && total > 0) {
+    Shape chunk = shape;
+    chunk[0] = std::min<hsize_t>(chunk_rows, std::max<hsize_t>(shape[0], 1));
+    H5Pset_chunk(plist.get(), static_cast<int>(chunk.size()), chunk.data());
+    H5Pset_deflate(plist.get(), 1);
+  }
+  Handle set(H5Dcreate2(id_, name.c_str(), h5_native_type<T>(), space.get(), H5P_DEFAULT,
+                        plist.get(), H5P_DEFAULT));
+  if (!set.ok()) throw IoError(path_ + ": cannot create dataset " + name);
+  if (total > 0 &&
+      H5Dwrite(set.get(), h5_native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    throw IoError(path_ + ": cannot write dataset " + name + " (disk full?)");
+}
+
+Shape H5File::shape(const std::string& name) const {
+  if (!exists(name)) throw InputError(path_ + ": missing dataset " + name);
+  Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
+  if (!set.ok()) throw InputError(path_ + ": " + name + " is not a dataset");
+  Handle space(H5Dget_space(set.get()));
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0) throw InputError(path_ + ": cannot read the shape of " + name);
+  Shape dims(static_cast<size_t>(rank));
+  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  return dims;
+}
+
+namespace {
+std::string shape_string(const Shape& s) {
+  std::string out = "[";
+  for (size_t i = 0; i < s.size(); ++i) out += (i ? ", " : "") + std::to_string(s[i]);
+  return out + "]";
+}
+}  // namespace
+
+template <class T>
+std::vector<T> H5File::read(const std::string& name, Shape* shape_out, const Shape& expect) const {
+  const Shape dims = shape(name);
+  if (!expect.empty()) {
+    bool ok = expect.size() == dims.size();
+    for (size_t i = 0; ok && i < dims.size(); ++i) ok = expect[i] == 0 || expect[i] == dims[i];
+    if (!ok)
+      throw InputError(path_ + ": dataset " + name + " has shape " + shape_string(dims) +
+                       ", expected " + shape_string(expect) + " (0 = any)");
+  }
+  hsize_t total = 1;
+  for (hsize_t d : dims) total *= d;
+  std::vector<T> out(total);
+  if (total > 0) {
+    Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
+    if (H5Dread(set.get(), h5_native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+      throw InputError(path_ + ": cannot read dataset " + name + " (corrupt, or wrong type)");
+  }
+  if (shape_out) *shape_out = dims;
+  return out;
+}
+
+template <class T>
+std::vector<T> H5File::read_slab(const std::string& name, const Shape& offset,
+                                 const Shape& count) const {
+  const Shape dims = shape(name);
+  if (offset.size() != dims.size() || count.size() != dims.size())
+    throw InputError(path_ + ": slab of " + name + " has the wrong rank");
+  hsize_t total = 1;
+  for (size_t i = 0; i < dims.size(); ++i) {
+    if (offset[i] + count[i] > dims[i])
+      throw InputError(path_ + ": slab outside dataset " + name + " of shape " + shape_string(dims));
+    total *= count[i];
+  }
+  std::vector<T> out(total);
+  if (total == 0) return out;
+  Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
+  Handle file_space(H5Dget_space(set.get()));
+  H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, offset.data(), nullptr, count.data(),
+                      nullptr);
+  Handle mem_space(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr));
+  if (H5Dread(set.get(), h5_native_type<T>(), mem_space.get(), file_space.get(), H5P_DEFAULT,
+              out.data()) < 0)
+    throw InputError(path_ + ": cannot read a slab of " + name);
+  return out;
+}
+
+#define BSMS_H5_INSTANTIATE(T)                                                                  \
+  template void H5File::write<T>(const std::string&, const T*, const Shape&, hsize_t);         \
+  template std::vector<T> H5File::read<T>(const std::string&, Shape*, const Shape&) const;     \
+  template std::vector<T> H5File::read_slab<T>(const std::string&, const Shape&, const Shape&) \
+      const;
+BSMS_H5_INSTANTIATE(int32_t)
+BSMS_H5_INSTANTIATE(int64_t)
+BSMS_H5_INSTANTIATE(float)
+BSMS_H5_INSTANTIATE(double)
+BSMS_H5_INSTANTIATE(uint8_t)
+#undef BSMS_H5_INSTANTIATE
+
+namespace {
+void write_attr(hid_t file, const std::string& path, const std::string& object,
+                const std::string& name, hid_t type, const void* value) {
+  Handle obj(H5Oopen(file, object.c_str(), H5P_DEFAULT));
+  if (!obj.ok()) throw IoError(path + ": missing object " + object);
+  if (H5Aexists(obj.get(), name.c_str()) > 0) H5Adelete(obj.get(), name.c_str());
+  Handle space(H5Screate(H5S_SCALAR));
+  Handle attr(H5Acreate2(obj.get(), name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT));
+  if (!attr.ok() || H5Awrite(attr.get(), type, value) < 0)
+    throw IoError(path + ": cannot write attribute " + object + "@" + name);
+}
+}  // namespace
+
+void H5File::set_attr(const std::string& object, const std::string& name,
+                      const std::string& value) {
+  Handle type(H5Tcopy(H5T_C_S1));
+  H5Tset_size(type.get(), std::max<size_t>(value.size(), 1));
+  H5Tset_strpad(type.get(), H5T_STR_NULLTERM);
+  H5Tset_cset(type.get(), H5T_CSET_UTF8);
+  std::string padded = value;
+  if (padded.empty()) padded.push_back('\0');
+  write_attr(id_, path_, object, name, type.get(), padded.data());
+}
+
+void H5File::set_attr(const std::string& object, const std::string& name, int64_t value) {
+  write_attr(id_, path_, object, name, H5T_NATIVE_INT64, &value);
+}
+
+void H5File::set_attr(const std::string& object, const std::string& name, double value) {
+  write_attr(id_, path_, object, name, H5T_NATIVE_DOUBLE, &value);
+}
+
+bool H5File::has_attr(const std::string& object, const std::string& name) const {
+  if (!exists(object)) return false;
+  return H5Aexists_by_name(id_, object.c_str(), name.c_str(), H5P_DEFAULT) > 0;
+}
+
+namespace {
+hid_t open_attr(hid_t file, const std::string& path, const std::string& object,
+                const std::string& name) {
+  if (H5Lexists(file, object.c_str(), H5P_DEFAULT) <= 0 && object != "/")
+    throw InputError(path + ": missing object " + object);
+  if (H5Aexists_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT) <= 0)
+    throw InputError(path + ": missing attribute " + object + "@" + name);
+  const hid_t attr = H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+  if (attr < 0) throw InputError(path + ": cannot open attribute " + object + "@" + name);
+  return attr;
+}
+}  // namespace
+
+std::string H5File::attr_string(const std::string& object, const std::string& name) const {
+  Handle attr(open_attr(id_, path_, object, name));
+  Handle type(H5Aget_type(attr.get()));
+  if (H5Tget_class(type.get()) != H5T_STRING)
+    throw InputError(path_ + ": attribute " + object + "@" + name + " is not a string");
+  if (H5Tis_variable_str(type.get()) > 0) {
+    char* buffer = nullptr;
+    Handle mem(H5Tcopy(H5T_C_S1));
+    H5Tset_size(mem.get(), H5T_VARIABLE);
+    if (H5Aread(attr.get(), mem.get(), &buffer) < 0 || buffer == nullptr)
+      throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
+    std::string out(buffer);
+    H5free_memory(buffer);
+    return out;
+  }
+  const size_t size = H5Tget_size(type.get());
+  std::string out(size, '\0');
+  if (H5Aread(attr.get(), type.get(), out.data()) < 0)
+    throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
+  out.resize(std::strlen(out.c_str()));
+  return out;
+}
+
+int64_t H5File::attr_int(const std::string& object, const std::string& name) const {
+  Handle attr(open_attr(id_, path_, object, name));
+  Handle type(H5Aget_type(attr.get()));
+  if (H5Tget_class(type.get()) != H5T_INTEGER)
+    throw InputError(path_ + ": attribute " + object + "@" + name + " is not an integer");
+  int64_t value = 0;
+  if (H5Aread(attr.get(), H5T_NATIVE_INT64, &value) < 0)
+    throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
+  return value;
+}
+
+double H5File::attr_double(const std::string& object, const std::string& name) const {
+  Handle attr(open_attr(id_, path_, object, name));
+  double value = 0;
+  if (H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value) < 0)
+    throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
+  return value;
+}
+
+AtomicOutput::AtomicOutput(std::string final_path) : final_(std::move(final_path)) {
+  static std::atomic<int> counter{0};
+  ensure_parent_dir(final_);
+  temp_ = final_ + ".tmp." + std::to_string(getpid()) + "." + std::to_string(counter++);
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (!committed_) std::remove(temp_.c_str());
+}
+
+void AtomicOutput::commit() {
+  const int fd = ::open(temp_.c_str(), O_RDONLY);
+  if (fd < 0) throw IoError(temp_ + ": temporary output vanished before commit");
+  const bool synced = ::fsync(fd) == 0;
+  ::close(fd);
+  if (!synced) throw IoError(temp_ + ": fsync failed (disk full?)");
+  if (std::rename(temp_.c_str(), final_.c_str()) != 0)
+    throw IoError(final_ + ": cannot rename the finished temporary file into place");
+  committed_ = true;
+}
+
+void ensure_parent_dir(const std::string& path) {
+  fs::path parent = fs::path(path).parent_path();
+  if (parent.empty()) parent = ".";
+  std::error_code ec;
+  fs::create_directories(parent, ec);
+  if (ec || !fs::is_directory(parent))
+    throw InputError(path + ": cannot create output folder " + parent.string() + " (" +
+                     ec.message() + ")");
+  if (::access(parent.c_str(), W_OK) != 0)
+    throw InputError(path + ": output folder " + parent.string() + " is not writable");
+}
+
+}  // namespace bsms

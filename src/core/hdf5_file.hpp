@@ -1,0 +1,105 @@
+// Thin RAII layer over the HDF5 C API: files, groups, typed datasets and attributes.
+// Every failure throws (IoError on write, InputError on read) naming the file and the object.
+#pragma once
+
+#include <hdf5.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace bsms {
+
+using Shape = std::vector<hsize_t>;
+
+template <class T>
+hid_t h5_native_type();
+template <>
+inline hid_t h5_native_type<int32_t>() { return H5T_NATIVE_INT32; }
+template <>
+inline hid_t h5_native_type<int64_t>() { return H5T_NATIVE_INT64; }
+template <>
+inline hid_t h5_native_type<float>() { return H5T_NATIVE_FLOAT; }
+template <>
+inline hid_t h5_native_type<double>() { return H5T_NATIVE_DOUBLE; }
+template <>
+inline hid_t h5_native_type<uint8_t>() { return H5T_NATIVE_UINT8; }
+
+class H5File {
+ public:
+  enum class Mode { kRead, kReadWrite, kTruncate };
+  H5File(const std::string& path, Mode mode);
+  ~H5File();
+  H5File(const H5File&) = delete;
+  H5File& operator=(const H5File&) = delete;
+  H5File(H5File&& other) noexcept;
+  H5File& operator=(H5File&& other) noexcept;
+
+  const std::string& path() const { return path_; }
+  hid_t id() const { return id_; }
+  void flush();
+  void close();
+
+  bool exists(const std::string& object) const;  // "/a/b/c", intermediate parts may be missing
+  void create_group(const std::string& group);    // creates intermediate groups
+  std::vector<std::string> list(const std::string& group) const;  // member names, sorted
+  void remove(const std::string& object);         // unlink (space is not reclaimed)
+  void move(const std::string& from, const std::string& to);
+
+  // Writes a whole dataset (creating intermediate groups). `chunk_rows` > 0 enables chunking and
+  // gzip level 1 along the first axis; 0 writes a contiguous dataset.
+  template <class T>
+  void write(const std::string& name, const T* data, const Shape& shape, hsize_t chunk_rows = 0);
+  template <class T>
+  void write(const std::string& name, const std::vector<T>& data, const Shape& shape,
+             hsize_t chunk_rows = 0) {
+    write(name, data.data(), shape, chunk_rows);
+  }
+
+  Shape shape(const std::string& name) const;
+  // Reads a whole dataset, converting to T; checks rank/extent against `expect` where given
+  // (0 in `expect` matches any extent).
+  template <class T>
+  std::vector<T> read(const std::string& name, Shape* shape_out = nullptr,
+                      const Shape& expect = {}) const;
+  // Reads the hyperslab [offset, offset + count) (count.size() == rank).
+  template <class T>
+  std::vector<T> read_slab(const std::string& name, const Shape& offset, const Shape& count) const;
+
+  // Attributes on an object ("/" for the root).
+  void set_attr(const std::string& object, const std::string& name, const std::string& value);
+  void set_attr(const std::string& object, const std::string& name, int64_t value);
+  void set_attr(const std::string& object, const std::string& name, double value);
+  bool has_attr(const std::string& object, const std::string& name) const;
+  std::string attr_string(const std::string& object, const std::string& name) const;
+  int64_t attr_int(const std::string& object, const std::string& name) const;
+  double attr_double(const std::string& object, const std::string& name) const;
+
+ private:
+  std::string path_;
+  hid_t id_ = -1;
+  bool writable_ = false;
+};
+
+// A file written under a temporary name in the same folder and renamed into place by commit();
+// destroyed without commit, the temporary is removed. A reader never sees a partial file.
+class AtomicOutput {
+ public:
+  explicit AtomicOutput(std::string final_path);
+  ~AtomicOutput();
+  AtomicOutput(const AtomicOutput&) = delete;
+  AtomicOutput& operator=(const AtomicOutput&) = delete;
+  const std::string& temp_path() const { return temp_; }
+  const std::string& final_path() const { return final_; }
+  void commit();  // fsync + rename; throws IoError
+
+ private:
+  std::string final_;
+  std::string temp_;
+  bool committed_ = false;
+};
+
+// Throws IoError naming `path` unless its parent folder exists and is writable (creates it).
+void ensure_parent_dir(const std::string& path);
+
+}  // namespace bsms

@@ -1,0 +1,95 @@
+#include "core/runtime.hpp"
+
+#include <omp.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+namespace bsms {
+
+int hardware_threads() {
+  const unsigned n = std::thread::hardware_concurrency();
+  return n == 0 ? 1 : static_cast<int>(n);
+}
+
+int set_num_threads(int requested) {
+  const int threads = requested <= 0 ? hardware_threads() : requested;
+  omp_set_num_threads(threads);
+  return threads;
+}
+
+double peak_rss_mb() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+double current_rss_mb() {
+  std::ifstream statm("/proc/self/statm");
+  long pages_total = 0, pages_resident = 0;
+  statm >> pages_total >> pages_resident;
+  return static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) /
+         (1024.0 * 1024.0);
+}
+
+ProgressBar::ProgressBar(std::string label, int64_t total)
+    : label_(std::move(label)), total_(std::max<int64_t>(total, 1)), tty_(isatty(STDERR_FILENO)) {}
+
+namespace {
+std::string format_eta(double seconds) {
+  char buf[32];
+  const long s = static_cast<long>(seconds + 0.5);
+  if (s >= 3600) {
+    std::snprintf(buf, sizeof buf, "%ldh%02ldm", s / 3600, (s / 60) % 60);
+  } else {
+    std::snprintf(buf, sizeof buf, "%ldm%02lds", s / 60, s % 60);
+  }
+  return buf;
+}
+}  // namespace
+
+void ProgressBar::update(int64_t done, const std::string& extra) {
+  if (finished_) return;
+  const double fraction = std::clamp(static_cast<double>(done) / total_, 0.0, 1.0);
+  const double elapsed = clock_.seconds();
+  std::ostringstream line;
+  if (tty_) {
+    if (elapsed - last_draw_ < 0.1 && done < total_) return;
+    last_draw_ = elapsed;
+    const int width = 30;
+    const int filled = static_cast<int>(fraction * width);
+    line << '\r' << label_ << " [" << std::string(filled, '#') << std::string(width - filled, ' ')
+         << "] " << done << '/' << total_;
+  } else {
+    const int decile = static_cast<int>(fraction * 10);
+    if (decile == last_decile_) return;
+    last_decile_ = decile;
+    line << label_ << ": " << done << '/' << total_;
+  }
+  line << "  " << format_eta(elapsed);
+  if (done > 0 && done < total_) line << " (eta " << format_eta(elapsed * (1.0 / fraction - 1.0)) << ')';
+  if (!extra.empty()) line << "  " << extra;
+  if (tty_) {
+    line << "\x1b[K";
+    std::cerr << line.str() << std::flush;
+  } else {
+    std::cerr << line.str() << '\n';
+  }
+}
+
+void ProgressBar::finish(const std::string& extra) {
+  if (finished_) return;
+  last_draw_ = -1.0;
+  last_decile_ = -1;
+  update(total_, extra);
+  if (tty_) std::cerr << '\n';
+  finished_ = true;
+}
+
+}  // namespace bsms

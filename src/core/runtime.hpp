@@ -1,0 +1,51 @@
+// Process-level runtime helpers: thread counts, timing, memory, progress display.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <string>
+
+namespace bsms {
+
+// Resolves a requested thread count (<= 0: hardware threads) and applies it to OpenMP.
+// LibTorch's own count is set by models/ (torch::set_num_threads) from the same value.
+int set_num_threads(int requested);
+int hardware_threads();
+
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  void reset() { start_ = std::chrono::steady_clock::now(); }
+  double seconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+  double milliseconds() const { return seconds() * 1e3; }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+// Peak resident set size of this process so far, in MiB.
+double peak_rss_mb();
+// Current resident set size, in MiB.
+double current_rss_mb();
+
+// A progress bar on stderr: redrawn in place on a terminal (at most ~10 times a second), a line
+// every 10% otherwise. `extra` is appended (e.g. "loss 1.2e-3, 14 steps/s").
+class ProgressBar {
+ public:
+  ProgressBar(std::string label, int64_t total);
+  void update(int64_t done, const std::string& extra = "");
+  void finish(const std::string& extra = "");
+
+ private:
+  std::string label_;
+  int64_t total_;
+  bool tty_;
+  int last_decile_ = -1;
+  bool finished_ = false;
+  Stopwatch clock_;
+  double last_draw_ = -1.0;
+};
+
+}  // namespace bsms

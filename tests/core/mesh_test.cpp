@@ -1,0 +1,222 @@
+#include "core/mesh.hpp"
+
+#include <gmsh.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.hpp"
+#include "core/gmsh_session.hpp"
+#include "core/graph.hpp"
+
+namespace bsms {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string temp_path(const std::string& name) {
+  return (fs::temp_directory_path() / ("bsms_mesh_" + name)).string();
+}
+
+std::string write_text(const std::string& name, const std::string& text) {
+  const std::string path = temp_path(name);
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string error_of(const std::string& path) {
+  try {
+    read_mesh(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A small MSH 2.2 file: two triangles, node 7 unused, node tags not contiguous.
+const char* kTwoTriangles = R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+5
+3 0 0 0
+5 1 0 0
+7 9 9 0
+8 1 1 0
+10 0 1 0
+$EndNodes
+$Elements
+2
+1 2 2 0 1 3 5 8
+2 2 2 0 1 3 8 10
+$EndElements
+)";
+
+TEST(Mesh, NumbersNodesByAscendingTagAndDropsUnusedNodes) {
+  const Mesh mesh = read_mesh(write_text("two.msh", kTwoTriangles));
+  EXPECT_EQ(mesh.dim, 2);
+  EXPECT_EQ(mesh.cell_dim, 2);
+  ASSERT_EQ(mesh.num_nodes(), 4);
+  EXPECT_EQ(mesh.node_tags, (std::vector<int64_t>{3, 5, 8, 10}));
+  EXPECT_EQ(mesh.num_cells(), 2);
+  EXPECT_EQ(mesh.cells(1, 0), 0);
+  EXPECT_EQ(mesh.cells(1, 1), 2);
+  EXPECT_EQ(mesh.cells(1, 2), 3);
+  EXPECT_DOUBLE_EQ(mesh.points(2, 0), 1.0);
+  EXPECT_DOUBLE_EQ(mesh.points(2, 1), 1.0);
+}
+
+TEST(Mesh, Msh22And41GiveTheSameMeshAndGroups) {
+  const std::string v2 = temp_path("disk22.msh"), v4 = temp_path("disk41.msh");
+  {
+    GmshSession session;
+    const int disk = gmsh::model::occ::addDisk(0, 0, 0, 1, 1);
+    const int hole = gmsh::model::occ::addDisk(0.3, 0, 0, 0.2, 0.2);
+    gmsh::vectorpair out;
+    std::vector<gmsh::vectorpair> map;
+    gmsh::model::occ::cut({{2, disk}}, {{2, hole}}, out, map);
+    gmsh::model::occ::synchronize();
+    gmsh::vectorpair boundary;
+    gmsh::model::getBoundary(out, boundary, true, false, false);
+    std::vector<int> curves;
+    for (const auto& [d, t] : boundary) curves.push_back(std::abs(t));
+    gmsh::model::addPhysicalGroup(1, curves, 11);
+    gmsh::model::setPhysicalName(1, 11, "wall");
+    gmsh::model::addPhysicalGroup(2, {out[0].second}, 12);
+    gmsh::option::setNumber("Mesh.CharacteristicLengthMax", 0.15);
+    gmsh::model::mesh::generate(2);
+    gmsh::option::setNumber("Mesh.MshFileVersion", 2.2);
+    gmsh::write(v2);
+    gmsh::option::setNumber("Mesh.MshFileVersion", 4.1);
+    gmsh::write(v4);
+  }
+  const Mesh a = read_mesh(v2), b = read_mesh(v4);
+  ASSERT_GT(a.num_nodes(), 50);
+  EXPECT_EQ(a.points, b.points);
+  EXPECT_EQ(a.cells, b.cells);
+  EXPECT_EQ(a.node_tags, b.node_tags);
+  ASSERT_EQ(a.node_groups.count("wall"), 1u);
+  EXPECT_EQ(a.node_groups.at("wall"), b.node_groups.at("wall"));
+  EXPECT_GT(a.node_groups.at("wall").size(), 10u);
+  const CsrGraph ga = mesh_graph(a), gb = mesh_graph(b);
+  EXPECT_EQ(ga.targets, gb.targets);
+}
+
+TEST(Mesh, GeometryFilesAreMeshed) {
+  const std::string geo = write_text("square.geo", R"(
+Point(1) = {0, 0, 0, 0.2}; Point(2) = {1, 0, 0, 0.2}; Point(3) = {1, 1, 0, 0.2};
+Point(4) = {0, 1, 0, 0.2};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+)");
+  const Mesh mesh = read_mesh(geo);
+  EXPECT_EQ(mesh.cell_dim, 2);
+  EXPECT_GT(mesh.num_nodes(), 20);
+}
+
+TEST(Mesh, TetrahedraAndLines) {
+  const std::string tet = write_text("tet.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+4
+1 0 0 0
+2 1 0 0
+3 0 1 0
+4 0 0 1
+$EndNodes
+$Elements
+2
+1 1 2 0 1 1 2
+2 4 2 0 1 1 2 3 4
+$EndElements
+)");
+  const Mesh m = read_mesh(tet);
+  EXPECT_EQ(m.dim, 3);
+  EXPECT_EQ(m.cell_dim, 3);
+  EXPECT_EQ(m.num_cells(), 1);
+  const std::string line = write_text("line.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+3
+1 0 0 0
+2 1 0 0
+3 2 0 0
+$EndNodes
+$Elements
+2
+1 1 2 0 1 1 2
+2 1 2 0 1 2 3
+$EndElements
+)");
+  const Mesh l = read_mesh(line);
+  EXPECT_EQ(l.dim, 1);
+  EXPECT_EQ(l.cell_dim, 1);
+  EXPECT_EQ(l.num_nodes(), 3);
+}
+
+TEST(Mesh, BadFilesGiveOneClearError) {
+  EXPECT_NE(error_of(temp_path("nope.msh")).find("not found"), std::string::npos);
+  EXPECT_NE(error_of(write_text("empty.msh", "")).find("empty"), std::string::npos);
+  std::string truncated = kTwoTriangles;
+  truncated.resize(truncated.size() / 2);
+  const std::string cut = write_text("cut.msh", truncated);
+  const std::string cut_error = error_of(cut);
+  EXPECT_NE(cut_error.find(cut), std::string::npos) << cut_error;
+  const std::string garbage = write_text("garbage.msh", "hello world\n");
+  EXPECT_NE(error_of(garbage).find(garbage), std::string::npos);
+  std::string nan_mesh = kTwoTriangles;
+  nan_mesh.replace(nan_mesh.find("8 1 1 0"), 7, "8 nan 1 0");
+  const std::string nan_error = error_of(write_text("nan.msh", nan_mesh));
+  EXPECT_NE(nan_error.find("non-finite"), std::string::npos) << nan_error;
+  const std::string mixed = write_text("mixed.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+5
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+5 2 0 0
+$EndNodes
+$Elements
+2
+1 3 2 0 1 1 2 3 4
+2 2 2 0 1 2 5 3
+$EndElements
+)");
+  const std::string mixed_error = error_of(mixed);
+  EXPECT_NE(mixed_error.find("mixed"), std::string::npos) << mixed_error;
+  const std::string points_only = write_text("points.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+1
+1 0 0 0
+$EndNodes
+$Elements
+1
+1 15 2 0 1 1
+$EndElements
+)");
+  EXPECT_NE(error_of(points_only).find("empty mesh"), std::string::npos);
+}
+
+TEST(Mesh, MakeMeshValidates) {
+  RowMatrixXd p(3, 2);
+  p << 0, 0, 1, 0, 0, 1;
+  RowMatrixXi64 c(1, 3);
+  c << 0, 1, 3;
+  EXPECT_THROW(make_mesh(2, p, c), InputError);
+  c << 0, 1, 1;
+  EXPECT_THROW(make_mesh(2, p, c), InputError);
+  c << 0, 1, 2;
+  p(1, 1) = std::nan("");
+  EXPECT_THROW(make_mesh(2, p, c), InputError);
+}
+
+}  // namespace
+}  // namespace bsms
