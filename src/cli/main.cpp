@@ -19,7 +19,8 @@ std::vector<Command>& command_registry() {
 }
 
 void add_threads_option(CLI::App& sub, int& threads) {
-  sub.add_option("--threads", threads, "worker threads (OpenMP and LibTorch); 0 = all hardware threads")
+  sub.add_option("--threads", threads,
+                 "worker threads (OpenMP and LibTorch); 0 = all hardware threads")
       ->check(CLI::NonNegativeNumber)
       ->default_val(0);
 }
@@ -48,7 +49,8 @@ void ensure_passive_omp_wait(char** argv) {
 int main(int argc, char** argv) {
   ensure_passive_omp_wait(argv);
 
-  CLI::App app{"bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
+  CLI::App app{
+      "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "bsms 0.1");
   auto& registry = bsms::cli::command_registry();

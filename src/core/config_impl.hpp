@@ -16,11 +16,13 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
       if (!value.is_number_integer())
         throw InputError(where.where() + " must be an integer, got " + value.dump());
     } else if constexpr (std::is_floating_point_v<T>) {
-      if (!value.is_number()) throw InputError(where.where() + " must be a number, got " + value.dump());
+      if (!value.is_number())
+        throw InputError(where.where() + " must be a number, got " + value.dump());
       const double v = value.get<double>();
       if (!std::isfinite(v)) throw InputError(where.where() + " must be finite");
     } else if constexpr (std::is_same_v<T, std::string>) {
-      if (!value.is_string()) throw InputError(where.where() + " must be a string, got " + value.dump());
+      if (!value.is_string())
+        throw InputError(where.where() + " must be a string, got " + value.dump());
     }
     return value.get<T>();
   } catch (const nlohmann::json::exception& e) {
@@ -30,7 +32,8 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
 
 template <class T>
 T JsonObjectReader::get(const std::string& key) {
-  if (!object_.contains(key)) throw InputError(context_.file + ": missing required key '" + context_.child(key).path + "'");
+  if (!object_.contains(key))
+    throw InputError(context_.file + ": missing required key '" + context_.child(key).path + "'");
   used_.push_back(key);
   return convert<T>(object_.at(key), key);
 }

@@ -5,8 +5,8 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
@@ -135,8 +135,8 @@ std::vector<std::string> H5File::list(const std::string& group) const {
   H5G_info_t info{};
   H5Gget_info(g.get(), &info);
   for (hsize_t i = 0; i < info.nlinks; ++i) {
-    const ssize_t len = H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0,
-                                           H5P_DEFAULT);
+    const ssize_t len =
+        H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
     std::string name(static_cast<size_t>(len), '\0');
     H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), len + 1,
                        H5P_DEFAULT);
@@ -230,7 +230,8 @@ std::vector<T> H5File::read_slab(const std::string& name, const Shape& offset,
   hsize_t total = 1;
   for (size_t i = 0; i < dims.size(); ++i) {
     if (offset[i] + count[i] > dims[i])
-      throw InputError(path_ + ": slab outside dataset " + name + " of shape " + shape_string(dims));
+      throw InputError(path_ + ": slab outside dataset " + name + " of shape " +
+                       shape_string(dims));
     total *= count[i];
   }
   std::vector<T> out(total);
@@ -246,7 +247,7 @@ std::vector<T> H5File::read_slab(const std::string& name, const Shape& offset,
   return out;
 }
 
-#define BSMS_H5_INSTANTIATE(T)                                                                  \
+#define BSMS_H5_INSTANTIATE(T)                                                                 \
   template void H5File::write<T>(const std::string&, const T*, const Shape&, hsize_t);         \
   template std::vector<T> H5File::read<T>(const std::string&, Shape*, const Shape&) const;     \
   template std::vector<T> H5File::read_slab<T>(const std::string&, const Shape&, const Shape&) \

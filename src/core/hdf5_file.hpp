@@ -15,15 +15,25 @@ using Shape = std::vector<hsize_t>;
 template <class T>
 hid_t h5_native_type();
 template <>
-inline hid_t h5_native_type<int32_t>() { return H5T_NATIVE_INT32; }
+inline hid_t h5_native_type<int32_t>() {
+  return H5T_NATIVE_INT32;
+}
 template <>
-inline hid_t h5_native_type<int64_t>() { return H5T_NATIVE_INT64; }
+inline hid_t h5_native_type<int64_t>() {
+  return H5T_NATIVE_INT64;
+}
 template <>
-inline hid_t h5_native_type<float>() { return H5T_NATIVE_FLOAT; }
+inline hid_t h5_native_type<float>() {
+  return H5T_NATIVE_FLOAT;
+}
 template <>
-inline hid_t h5_native_type<double>() { return H5T_NATIVE_DOUBLE; }
+inline hid_t h5_native_type<double>() {
+  return H5T_NATIVE_DOUBLE;
+}
 template <>
-inline hid_t h5_native_type<uint8_t>() { return H5T_NATIVE_UINT8; }
+inline hid_t h5_native_type<uint8_t>() {
+  return H5T_NATIVE_UINT8;
+}
 
 class H5File {
  public:
@@ -41,9 +51,9 @@ class H5File {
   void close();
 
   bool exists(const std::string& object) const;  // "/a/b/c", intermediate parts may be missing
-  void create_group(const std::string& group);    // creates intermediate groups
+  void create_group(const std::string& group);   // creates intermediate groups
   std::vector<std::string> list(const std::string& group) const;  // member names, sorted
-  void remove(const std::string& object);         // unlink (space is not reclaimed)
+  void remove(const std::string& object);                         // unlink (space is not reclaimed)
   void move(const std::string& from, const std::string& to);
 
   // Writes a whole dataset (creating intermediate groups). `chunk_rows` > 0 enables chunking and

@@ -32,10 +32,14 @@ constexpr int kGmshLine2 = 1, kGmshTriangle3 = 2, kGmshTetrahedron4 = 4;
 
 int simplex_type(int cell_dim) {
   switch (cell_dim) {
-    case 1: return kGmshLine2;
-    case 2: return kGmshTriangle3;
-    case 3: return kGmshTetrahedron4;
-    default: return -1;
+    case 1:
+      return kGmshLine2;
+    case 2:
+      return kGmshTriangle3;
+    case 3:
+      return kGmshTetrahedron4;
+    default:
+      return -1;
   }
 }
 
@@ -93,7 +97,8 @@ Mesh GmshSession::extract_mesh(const std::string& context) const {
     gmsh::model::mesh::getElementTypes(types, d);
     if (!types.empty()) cell_dim = d;
   }
-  if (cell_dim == 0) throw InputError(context + ": empty mesh (no line, triangle or tetrahedron cells)");
+  if (cell_dim == 0)
+    throw InputError(context + ": empty mesh (no line, triangle or tetrahedron cells)");
   if (types.size() != 1 || types[0] != simplex_type(cell_dim)) {
     std::string found;
     for (int t : types) found += (found.empty() ? "" : ", ") + element_name(t);
@@ -196,7 +201,8 @@ Mesh read_mesh(const std::string& path) {
     try {
       gmsh::model::mesh::generate(gmsh::model::getDimension());
     } catch (const std::exception& e) {
-      throw InputError(path + ": gmsh failed to mesh this geometry (" + std::string(e.what()) + ")");
+      throw InputError(path + ": gmsh failed to mesh this geometry (" + std::string(e.what()) +
+                       ")");
     }
   }
   return session.extract_mesh(path);
@@ -218,8 +224,9 @@ void validate_mesh(const Mesh& mesh, const std::string& context) {
   if (mesh.dim < 1 || mesh.dim > 3 || mesh.points.cols() != mesh.dim)
     throw InputError(context + ": positions must have 1 to 3 columns");
   if (mesh.cell_dim < 1 || mesh.cell_dim > 3 || mesh.cell_dim > mesh.dim)
-    throw InputError(context + ": cells must be lines, triangles or tetrahedra in a space of at "
-                               "least their dimension");
+    throw InputError(context +
+                     ": cells must be lines, triangles or tetrahedra in a space of at "
+                     "least their dimension");
   if (mesh.num_cells() == 0 || mesh.num_nodes() == 0)
     throw InputError(context + ": empty mesh (no cells)");
   for (int64_t i = 0; i < mesh.num_nodes(); ++i) {

@@ -13,10 +13,10 @@ using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen:
 using RowMatrixXi64 = Eigen::Matrix<int64_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
 struct Mesh {
-  int dim = 0;            // spatial dimension of `points` (1, 2 or 3)
-  int cell_dim = 0;       // topological dimension of the cells: 1 line, 2 triangle, 3 tetrahedron
-  RowMatrixXd points;     // [N, dim] node positions
-  RowMatrixXi64 cells;    // [C, cell_dim + 1] node indices (0-based)
+  int dim = 0;          // spatial dimension of `points` (1, 2 or 3)
+  int cell_dim = 0;     // topological dimension of the cells: 1 line, 2 triangle, 3 tetrahedron
+  RowMatrixXd points;   // [N, dim] node positions
+  RowMatrixXi64 cells;  // [C, cell_dim + 1] node indices (0-based)
   std::vector<int64_t> node_tags;  // [N] gmsh node tag of each node (ascending)
   // Physical groups of any dimension: name -> sorted node indices (only nodes that are kept).
   std::map<std::string, std::vector<int64_t>> node_groups;

@@ -73,7 +73,8 @@ void ProgressBar::update(int64_t done, const std::string& extra) {
     line << label_ << ": " << done << '/' << total_;
   }
   line << "  " << format_eta(elapsed);
-  if (done > 0 && done < total_) line << " (eta " << format_eta(elapsed * (1.0 / fraction - 1.0)) << ')';
+  if (done > 0 && done < total_)
+    line << " (eta " << format_eta(elapsed * (1.0 / fraction - 1.0)) << ')';
   if (!extra.empty()) line << "  " << extra;
   if (tty_) {
     line << "\x1b[K";

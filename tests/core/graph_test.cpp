@@ -80,8 +80,10 @@ TEST(Graph, ComponentsAndBfsMatchBruteForceOnRandomGraphs) {
     // Components are numbered by their lowest node.
     int64_t next = 0;
     for (int64_t i = 0; i < n; ++i)
-      if (comp.label[i] == next) ++next;
-      else ASSERT_LT(comp.label[i], next);
+      if (comp.label[i] == next)
+        ++next;
+      else
+        ASSERT_LT(comp.label[i], next);
 
     const int64_t source = static_cast<int64_t>(rng() % n);
     const auto depth = bfs_depths(g, source);

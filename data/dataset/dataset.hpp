@@ -1,0 +1,106 @@
+// Datasets of simulated trajectories (DESIGN.md "Dataset"): one HDF5 file per split.
+//
+//   /                        attrs: format="bsms-dataset", version=1, scene (JSON), dim, frame_dt
+//   /trajectories/<000000>/  attrs: seed, parameters (JSON)
+//       cells int32 [C, dim+1], mesh_pos float32 [N, dim], node_type int32 [N], body_id int32 [N]
+//       world_pos float32 [T, N, dim], velocity float32 [T, N, dim], stress float32 [T, N]
+//       (optional)
+//
+// The reader also accepts the public MeshGraphNets / BSMS-GNN layout converted to HDF5: a folder
+// `{split}/` holding `{i}.h5`, each with mesh_pos, cells, node_type and dynamic fields among
+// world_pos, velocity, pressure, density (static fields may carry a leading time axis).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bsms {
+
+enum class NodeType : int32_t { kNormal = 0, kFixed = 1, kMoving = 2, kSlip = 3 };
+
+// The time-independent part of a trajectory.
+struct TrajectoryMesh {
+  int dim = 0;                     // spatial dimension of mesh_pos
+  int cell_size = 0;               // nodes per cell (dim + 1 for bsms data)
+  std::vector<int32_t> cells;      // [C, cell_size]
+  std::vector<float> mesh_pos;     // [N, dim] reference positions
+  std::vector<int32_t> node_type;  // [N] NodeType values (public data: its own codes)
+  std::vector<int32_t> body_id;    // [N] (all 0 when the data has no bodies)
+  int64_t num_nodes() const { return static_cast<int64_t>(node_type.size()); }
+  int64_t num_cells() const {
+    return cell_size > 0 ? static_cast<int64_t>(cells.size()) / cell_size : 0;
+  }
+};
+
+// A whole trajectory in memory, as the generator writes it.
+struct Trajectory {
+  TrajectoryMesh mesh;
+  int64_t seed = 0;
+  std::string parameters = "{}";  // JSON of the sampled scene parameters
+  int64_t num_frames = 0;
+  // Dynamic fields by name: [T, N, width] flattened; width = dim for vectors, 1 for scalars.
+  std::map<std::string, std::vector<float>> fields;
+};
+
+struct FieldInfo {
+  std::string name;
+  int64_t width = 0;  // components per node
+};
+
+// Writes a bsms dataset file atomically (temporary name, renamed by commit()).
+class DatasetWriter {
+ public:
+  DatasetWriter(const std::string& path, const std::string& scene_json, int dim, double frame_dt);
+  ~DatasetWriter();
+  DatasetWriter(const DatasetWriter&) = delete;
+  DatasetWriter& operator=(const DatasetWriter&) = delete;
+
+  // Appends a trajectory under the next index (000000, 000001, ...). Rejects non-finite values
+  // (never store NaN) and inconsistent shapes with an InputError.
+  void add(const Trajectory& trajectory);
+  void commit();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Random access to (trajectory, frame) of one split.
+class Dataset {
+ public:
+  // `location` is a bsms dataset file (e.g. DIR/train.h5), or a folder of public per-trajectory
+  // files (e.g. DIR/train/ holding 0.h5, 1.h5, ...). InputError names the file and the problem.
+  explicit Dataset(const std::string& location);
+  // Opens split `split` of a dataset folder: DIR/{split}.h5 if present, else DIR/{split}/.
+  static Dataset open_split(const std::string& dir, const std::string& split);
+  ~Dataset();
+  Dataset(Dataset&&) noexcept;
+  Dataset& operator=(Dataset&&) noexcept;
+
+  const std::string& location() const;
+  bool is_public_layout() const;
+  int dim() const;
+  double frame_dt() const;           // 0 when the data does not say
+  const std::string& scene() const;  // scene JSON ("{}" for public data)
+  int64_t num_trajectories() const;
+  int64_t num_frames(int64_t trajectory) const;
+  std::vector<FieldInfo> fields() const;  // dynamic fields present in every trajectory
+  bool has_field(const std::string& name) const;
+
+  // Static mesh of a trajectory (read once, then cached).
+  const TrajectoryMesh& mesh(int64_t trajectory) const;
+  int64_t seed(int64_t trajectory) const;
+  std::string parameters(int64_t trajectory) const;
+  // Frames [t0, t0 + count) of a field: [count, N, width] flattened.
+  std::vector<float> read(int64_t trajectory, const std::string& field, int64_t t0,
+                          int64_t count = 1) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bsms

@@ -1,0 +1,79 @@
+#include "core/radius_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace bsms {
+
+EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* exclude) {
+  const int64_t n = points.rows();
+  const int dim = static_cast<int>(points.cols());
+  if (!(radius > 0) || !std::isfinite(radius))
+    throw std::invalid_argument("radius_pairs: radius must be positive and finite");
+  if (exclude && exclude->num_nodes != n)
+    throw std::invalid_argument("radius_pairs: exclusion graph has another node count");
+  EdgeList out;
+  if (n == 0) return out;
+  // Cells of side `radius`: neighbours lie in the 3^dim surrounding cells. Nodes are sorted by a
+  // cell key so each cell is a contiguous run, found by binary search.
+  Eigen::RowVectorXd lo = points.colwise().minCoeff();
+  std::vector<int64_t> cell(n * 3, 0);
+  int64_t extent[3] = {1, 1, 1};
+  for (int c = 0; c < dim; ++c) {
+    extent[c] = static_cast<int64_t>((points.col(c).maxCoeff() - lo(c)) / radius) + 1;
+  }
+  auto key_of = [&](const int64_t* ijk) {
+    return (ijk[2] * extent[1] + ijk[1]) * extent[0] + ijk[0];
+  };
+  std::vector<std::pair<int64_t, int64_t>> keyed(n);
+  for (int64_t i = 0; i < n; ++i) {
+    for (int c = 0; c < dim; ++c)
+      cell[3 * i + c] = static_cast<int64_t>((points(i, c) - lo(c)) / radius);
+    keyed[i] = {key_of(&cell[3 * i]), i};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  const double r2 = radius * radius;
+  std::vector<std::vector<int64_t>> found(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (int64_t i = 0; i < n; ++i) {
+    const int64_t* ci = &cell[3 * i];
+    auto& mine = found[i];
+    int64_t lo3[3] = {0, 0, 0}, hi3[3] = {0, 0, 0};
+    for (int c = 0; c < dim; ++c) {
+      lo3[c] = std::max<int64_t>(ci[c] - 1, 0);
+      hi3[c] = std::min<int64_t>(ci[c] + 1, extent[c] - 1);
+    }
+    int64_t q[3];
+    for (q[2] = lo3[2]; q[2] <= hi3[2]; ++q[2])
+      for (q[1] = lo3[1]; q[1] <= hi3[1]; ++q[1])
+        for (q[0] = lo3[0]; q[0] <= hi3[0]; ++q[0]) {
+          const int64_t key = key_of(q);
+          auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(key, int64_t{-1}));
+          for (; it != keyed.end() && it->first == key; ++it) {
+            const int64_t j = it->second;
+            if (j == i) continue;
+            double d2 = 0;
+            for (int c = 0; c < dim; ++c) {
+              const double d = points(i, c) - points(j, c);
+              d2 += d * d;
+            }
+            if (d2 >= r2) continue;
+            if (exclude && std::binary_search(exclude->begin(i), exclude->end(i), j)) continue;
+            mine.push_back(j);
+          }
+        }
+    std::sort(mine.begin(), mine.end());
+  }
+  size_t total = 0;
+  for (const auto& f : found) total += f.size();
+  out.data.reserve(2 * total);
+  for (int64_t i = 0; i < n; ++i)
+    for (int64_t j : found[i]) {
+      out.data.push_back(i);
+      out.data.push_back(j);
+    }
+  return out;
+}
+
+}  // namespace bsms

@@ -1,0 +1,37 @@
+#include "core/radius_search.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace bsms {
+namespace {
+
+TEST(RadiusSearch, MatchesBruteForceInOneTwoAndThreeDimensions) {
+  std::mt19937 rng(3);
+  for (int dim = 1; dim <= 3; ++dim) {
+    for (int trial = 0; trial < 10; ++trial) {
+      const int64_t n = 20 + 37 * trial;
+      std::uniform_real_distribution<double> u(-2.0, 3.0);
+      RowMatrixXd x(n, dim);
+      for (int64_t i = 0; i < n; ++i)
+        for (int c = 0; c < dim; ++c) x(i, c) = u(rng);
+      const double r = 0.2 + 0.1 * trial;
+      // Exclude a random graph's edges.
+      std::vector<int64_t> pairs;
+      for (int64_t i = 0; i + 1 < n; i += 2) pairs.insert(pairs.end(), {i, i + 1});
+      const CsrGraph exclude = graph_from_pairs(n, pairs);
+      const EdgeList got = radius_pairs(x, r, &exclude);
+      std::vector<int64_t> expected;
+      for (int64_t i = 0; i < n; ++i)
+        for (int64_t j = 0; j < n; ++j) {
+          if (i == j || (std::abs(i - j) == 1 && std::min(i, j) % 2 == 0)) continue;
+          if ((x.row(i) - x.row(j)).squaredNorm() < r * r) expected.insert(expected.end(), {i, j});
+        }
+      ASSERT_EQ(got.data, expected) << "dim " << dim << " trial " << trial;
+    }
+  }
+}
+
+}  // namespace
+}  // namespace bsms

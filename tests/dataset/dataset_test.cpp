@@ -1,0 +1,136 @@
+#include "data/dataset/dataset.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+
+namespace bsms {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("bsms_dataset_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+Trajectory make_trajectory(int64_t seed, int64_t frames) {
+  Trajectory t;
+  t.mesh.dim = 2;
+  t.mesh.cell_size = 3;
+  t.mesh.cells = {0, 1, 2, 0, 2, 3};
+  t.mesh.mesh_pos = {0, 0, 1, 0, 1, 1, 0, 1};
+  t.mesh.node_type = {0, 1, 0, 2};
+  t.mesh.body_id = {0, 0, 1, 1};
+  t.seed = seed;
+  t.parameters = R"({"radius": 0.5})";
+  t.num_frames = frames;
+  std::vector<float> pos(frames * 4 * 2), vel(frames * 4 * 2), stress(frames * 4);
+  for (size_t i = 0; i < pos.size(); ++i) pos[i] = static_cast<float>(seed * 1000 + i);
+  for (size_t i = 0; i < vel.size(); ++i) vel[i] = -static_cast<float>(i);
+  for (size_t i = 0; i < stress.size(); ++i) stress[i] = 0.5f * static_cast<float>(i);
+  t.fields = {{"world_pos", pos}, {"velocity", vel}, {"stress", stress}};
+  return t;
+}
+
+TEST(Dataset, WriteThenRandomAccessRead) {
+  const fs::path dir = temp_dir("roundtrip");
+  {
+    DatasetWriter w((dir / "train.h5").string(), R"({"name": "disks2d"})", 2, 0.01);
+    w.add(make_trajectory(7, 5));
+    w.add(make_trajectory(8, 3));
+    w.commit();
+  }
+  const Dataset d = Dataset::open_split(dir.string(), "train");
+  EXPECT_FALSE(d.is_public_layout());
+  EXPECT_EQ(d.dim(), 2);
+  EXPECT_DOUBLE_EQ(d.frame_dt(), 0.01);
+  EXPECT_EQ(d.scene(), R"({"name": "disks2d"})");
+  ASSERT_EQ(d.num_trajectories(), 2);
+  EXPECT_EQ(d.num_frames(0), 5);
+  EXPECT_EQ(d.num_frames(1), 3);
+  EXPECT_EQ(d.seed(1), 8);
+  EXPECT_EQ(d.parameters(0), R"({"radius": 0.5})");
+  EXPECT_TRUE(d.has_field("stress"));
+  const auto& m = d.mesh(1);
+  EXPECT_EQ(m.num_nodes(), 4);
+  EXPECT_EQ(m.num_cells(), 2);
+  EXPECT_EQ(m.node_type, (std::vector<int32_t>{0, 1, 0, 2}));
+  EXPECT_EQ(m.body_id, (std::vector<int32_t>{0, 0, 1, 1}));
+  // Frame 2 of trajectory 1: flat offset 2 * 4 * 2 = 16.
+  const auto pos = d.read(1, "world_pos", 2);
+  ASSERT_EQ(pos.size(), 8u);
+  EXPECT_EQ(pos[0], 8016.0f);
+  EXPECT_EQ(pos[7], 8023.0f);
+  const auto stress = d.read(0, "stress", 1, 2);
+  ASSERT_EQ(stress.size(), 8u);
+  EXPECT_EQ(stress[0], 2.0f);
+  EXPECT_THROW(d.read(1, "world_pos", 3), InputError);
+  EXPECT_THROW(d.read(2, "world_pos", 0), InputError);
+  EXPECT_THROW(d.read(0, "pressure", 0), InputError);
+}
+
+TEST(Dataset, WriterRejectsNaNAndLeavesNoFile) {
+  const fs::path dir = temp_dir("nan");
+  const std::string path = (dir / "train.h5").string();
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    Trajectory t = make_trajectory(1, 2);
+    t.fields["velocity"][3] = std::nanf("");
+    EXPECT_THROW(w.add(t), InputError);
+  }
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(Dataset, ReadsPublicMeshGraphNetsLayout) {
+  // Public converted layout: {split}/{i}.h5, static fields with a leading time axis of 1.
+  const fs::path dir = temp_dir("public");
+  fs::create_directories(dir / "valid");
+  for (int i = 0; i < 3; ++i) {
+    H5File f((dir / "valid" / (std::to_string(i) + ".h5")).string(), H5File::Mode::kTruncate);
+    f.write("/mesh_pos", std::vector<float>{0, 0, 1, 0, 0, 1}, {1, 3, 2});
+    f.write("/cells", std::vector<int32_t>{0, 1, 2}, {1, 1, 3});
+    f.write("/node_type", std::vector<int32_t>{0, 4, 6}, {1, 3, 1});
+    std::vector<float> velocity(4 * 3 * 2, static_cast<float>(i));
+    f.write("/velocity", velocity, {4, 3, 2});
+    f.write("/pressure", std::vector<float>(4 * 3, 1.5f), {4, 3, 1});
+  }
+  const Dataset d = Dataset::open_split(dir.string(), "valid");
+  EXPECT_TRUE(d.is_public_layout());
+  EXPECT_EQ(d.num_trajectories(), 3);
+  EXPECT_EQ(d.dim(), 2);
+  EXPECT_EQ(d.num_frames(2), 4);
+  const auto& m = d.mesh(2);
+  EXPECT_EQ(m.num_nodes(), 3);
+  EXPECT_EQ(m.cell_size, 3);
+  EXPECT_EQ(m.node_type, (std::vector<int32_t>{0, 4, 6}));
+  EXPECT_EQ(m.body_id, (std::vector<int32_t>{0, 0, 0}));
+  const auto v = d.read(2, "velocity", 3);
+  EXPECT_EQ(v, std::vector<float>(6, 2.0f));
+  EXPECT_EQ(d.read(0, "pressure", 0).size(), 3u);
+  EXPECT_THROW(Dataset::open_split(dir.string(), "test"), InputError);
+}
+
+TEST(Dataset, RejectsFilesThatAreNotDatasets) {
+  const fs::path dir = temp_dir("bad");
+  {
+    H5File f((dir / "train.h5").string(), H5File::Mode::kTruncate);
+    f.set_attr("/", "format", std::string("bsms-multilevel"));
+  }
+  try {
+    Dataset d((dir / "train.h5").string());
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a bsms dataset"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace bsms
