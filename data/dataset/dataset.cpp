@@ -82,6 +82,7 @@ void DatasetWriter::add(const Trajectory& t) {
   f.create_group(group);
   f.set_attr(group, "seed", t.seed);
   f.set_attr(group, "parameters", t.parameters);
+  if (t.solver_wall_s >= 0) f.set_attr(group, "solver_wall_s", t.solver_wall_s);
   f.write(group + "/cells", m.cells,
           {static_cast<hsize_t>(m.num_cells()), static_cast<hsize_t>(cell_size)});
   f.write(group + "/mesh_pos", m.mesh_pos, {static_cast<hsize_t>(n), static_cast<hsize_t>(dim)});
@@ -317,6 +318,14 @@ std::string Dataset::parameters(int64_t t) const {
   if (impl_->public_layout) return "{}";
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->file->attr_string(impl_->groups[t], "parameters");
+}
+
+double Dataset::solver_wall_s(int64_t t) const {
+  check_index(*this, t);
+  if (impl_->public_layout) return -1.0;
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (!impl_->file->has_attr(impl_->groups[t], "solver_wall_s")) return -1.0;
+  return impl_->file->attr_double(impl_->groups[t], "solver_wall_s");
 }
 
 std::vector<float> Dataset::read(int64_t t, const std::string& field, int64_t t0,

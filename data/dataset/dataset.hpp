@@ -40,6 +40,7 @@ struct Trajectory {
   TrajectoryMesh mesh;
   int64_t seed = 0;
   std::string parameters = "{}";  // JSON of the sampled scene parameters
+  double solver_wall_s = -1.0;    // wall time the solver took for it (s); < 0: unknown
   int64_t num_frames = 0;
   // Dynamic fields by name: [T, N, width] flattened; width = dim for vectors, 1 for scalars.
   std::map<std::string, std::vector<float>> fields;
@@ -94,6 +95,8 @@ class Dataset {
   const TrajectoryMesh& mesh(int64_t trajectory) const;
   int64_t seed(int64_t trajectory) const;
   std::string parameters(int64_t trajectory) const;
+  // Solver wall time of the trajectory in seconds, or a negative value when not recorded.
+  double solver_wall_s(int64_t trajectory) const;
   // Frames [t0, t0 + count) of a field: [count, N, width] flattened.
   std::vector<float> read(int64_t trajectory, const std::string& field, int64_t t0,
                           int64_t count = 1) const;

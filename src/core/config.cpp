@@ -42,6 +42,21 @@ void apply_override(Json& config, const std::string& assignment, const std::stri
   }
   for (size_t i = 0; i < keys.size(); ++i) {
     walked += (i ? "." : "") + keys[i];
+    // A list element by index: bodies.0.spacing=0.1 (the index must exist).
+    if (node->is_array() && !keys[i].empty() &&
+        keys[i].find_first_not_of("0123456789") == std::string::npos) {
+      const size_t index = std::stoul(keys[i]);
+      if (index >= node->size())
+        throw InputError(source + ": --set '" + assignment + "': index " + keys[i] +
+                         " is beyond the " + std::to_string(node->size()) + " elements of '" +
+                         walked + "'");
+      if (i + 1 == keys.size()) {
+        (*node)[index] = value;
+      } else {
+        node = &(*node)[index];
+      }
+      continue;
+    }
     if (!node->is_object())
       throw InputError(source + ": --set '" + assignment + "': '" + walked +
                        "' is inside a value that is not an object");

@@ -86,6 +86,10 @@ void ProgressBar::update(int64_t done, const std::string& extra) {
 
 void ProgressBar::finish(const std::string& extra) {
   if (finished_) return;
+  if (!tty_ && last_decile_ == 10 && extra.empty()) {  // the 100% line is already out
+    finished_ = true;
+    return;
+  }
   last_draw_ = -1.0;
   last_decile_ = -1;
   update(total_, extra);

@@ -31,6 +31,7 @@ Trajectory make_trajectory(int64_t seed, int64_t frames) {
   t.seed = seed;
   t.parameters = R"({"radius": 0.5})";
   t.num_frames = frames;
+  t.solver_wall_s = seed == 7 ? 1.5 : -1.0;
   std::vector<float> pos(frames * 4 * 2), vel(frames * 4 * 2), stress(frames * 4);
   for (size_t i = 0; i < pos.size(); ++i) pos[i] = static_cast<float>(seed * 1000 + i);
   for (size_t i = 0; i < vel.size(); ++i) vel[i] = -static_cast<float>(i);
@@ -56,6 +57,8 @@ TEST(Dataset, WriteThenRandomAccessRead) {
   EXPECT_EQ(d.num_frames(0), 5);
   EXPECT_EQ(d.num_frames(1), 3);
   EXPECT_EQ(d.seed(1), 8);
+  EXPECT_DOUBLE_EQ(d.solver_wall_s(0), 1.5);
+  EXPECT_LT(d.solver_wall_s(1), 0.0);
   EXPECT_EQ(d.parameters(0), R"({"radius": 0.5})");
   EXPECT_TRUE(d.has_field("stress"));
   const auto& m = d.mesh(1);
