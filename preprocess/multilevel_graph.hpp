@@ -32,15 +32,23 @@ struct MultilevelGraph {
 };
 
 // `--levels auto`: a candidate level k+1 is added only while all of these hold, so coarse levels
-// neither turn dense (A² grows degrees: DESIGN.md's 243K-node mesh reaches 450K edges on 730
-// nodes) nor tiny:
-//   mean degree(k+1) <= kAutoMaxDegreeFactor * mean degree(0), and <= kAutoMaxMeanDegree;
-//   the largest cluster of level k+1 has >= kAutoMinClusterNodes nodes;
-//   N(k+1) < N(k)  (pooling still removes nodes).
-constexpr double kAutoMaxDegreeFactor = 3.0;
-constexpr double kAutoMaxMeanDegree = 64.0;
+// neither turn dense nor tiny. A² roughly doubles the mean degree per level on 2D meshes
+// (DESIGN.md: a 243K-node mesh reaches 450K edges on 730 nodes at level 8) and triples it on 3D
+// tetrahedral meshes:
+//   N(k+1) < N(k)                                    pooling still removes nodes;
+//   largest cluster of level k+1 >= kAutoMinClusterNodes nodes;
+//   E(k+1) <= kAutoMaxEdgesFactor * E(0)             message passing on a coarse level costs at
+//                                                    most twice the input mesh's;
+//   E(k+1) <= kAutoMaxDensity * sum_c n_c (n_c - 1)  at most this fraction of the node pairs
+//                                                    inside clusters are joined.
 constexpr int64_t kAutoMinClusterNodes = 16;
+constexpr double kAutoMaxEdgesFactor = 2.0;
+constexpr double kAutoMaxDensity = 0.25;
 constexpr int kAutoMaxLevels = 64;
+
+// True when `candidate` (a coarser level of a graph whose level 0 has `level0_edges` edges, built
+// from a level of `previous_nodes` nodes) passes the `--levels auto` rule above.
+bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64_t level0_edges);
 
 struct BuildOptions {
   Seeding seeding = Seeding::kCloseCenter;
@@ -55,12 +63,14 @@ struct LevelReport {
   int64_t edges = 0;     // directed edges (both directions counted)
   int64_t clusters = 0;  // connected components of this level
   double mean_degree = 0.0;
-  double milliseconds = 0.0;  // time to build this level from the previous one (0 for level 0)
+  // Time to build this level from the previous one; level 0: building the mesh graph (0 when
+  // the graph was given).
+  double milliseconds = 0.0;
 };
 
 // Builds the multilevel graph from a level-0 graph and its node positions [N, dim].
 // Deterministic for given inputs and options, independent of the thread count.
-MultilevelGraph build_multilevel_graph(const CsrGraph& graph, const RowMatrixXd& positions,
+MultilevelGraph build_multilevel_graph(CsrGraph graph, const RowMatrixXd& positions,
                                        const BuildOptions& options,
                                        std::vector<LevelReport>* report = nullptr);
 // Same, from a mesh (level 0 = mesh_graph(mesh)).
@@ -68,7 +78,8 @@ MultilevelGraph build_multilevel_graph(const Mesh& mesh, const BuildOptions& opt
                                        std::vector<LevelReport>* report = nullptr);
 
 // One coarsening step: level k+1 from level k (graph, positions and node weights set).
-// `seed` is used by Seeding::kRandom only; `clusters_out` receives the number of clusters of `fine`.
+// `seed` is used by Seeding::kRandom only; `clusters_out` receives the number of clusters of
+// `fine`.
 GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed,
                          int64_t* clusters_out = nullptr);
 

@@ -21,7 +21,7 @@ std::vector<Command>& command_registry() {
 void add_threads_option(CLI::App& sub, int& threads) {
   sub.add_option("--threads", threads,
                  "worker threads (OpenMP and LibTorch); 0 = all hardware threads")
-      ->check(CLI::NonNegativeNumber)
+      ->check(CLI::Range(0, 4096))
       ->default_val(0);
 }
 

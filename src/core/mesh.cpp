@@ -1,6 +1,7 @@
 #include "core/mesh.hpp"
 
 #include <gmsh.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -57,8 +58,11 @@ std::string element_name(int type) {
 
 }  // namespace
 
+// gmsh sets OpenMP's thread count itself (General.NumThreads): the session restores the
+// caller's count when it ends, so work after reading a mesh keeps all its threads.
 struct GmshSession::Lock {
   std::unique_lock<std::mutex> guard{gmsh_mutex()};
+  int omp_threads = omp_get_max_threads();
 };
 
 GmshSession::GmshSession() : lock_(std::make_unique<Lock>()) {
@@ -81,12 +85,14 @@ void GmshSession::reset() {
 }
 
 GmshSession::~GmshSession() {
-  if (!gmsh_initialised) return;
-  try {
-    gmsh::clear();
-  } catch (...) {
-    // Nothing sensible to do in a destructor; the next session clears again.
+  if (gmsh_initialised) {
+    try {
+      gmsh::clear();
+    } catch (...) {
+      // Nothing sensible to do in a destructor; the next session clears again.
+    }
   }
+  omp_set_num_threads(lock_->omp_threads);
 }
 
 Mesh GmshSession::extract_mesh(const std::string& context) const {

@@ -2,6 +2,7 @@
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <filesystem>
 #include <fstream>
@@ -101,6 +102,12 @@ TEST(Mesh, Msh22And41GiveTheSameMeshAndGroups) {
   EXPECT_GT(a.node_groups.at("wall").size(), 10u);
   const CsrGraph ga = mesh_graph(a), gb = mesh_graph(b);
   EXPECT_EQ(ga.targets, gb.targets);
+}
+
+TEST(Mesh, ReadingKeepsTheOpenMpThreadCount) {
+  omp_set_num_threads(2);
+  read_mesh(write_text("threads.msh", kTwoTriangles));
+  EXPECT_EQ(omp_get_max_threads(), 2);
 }
 
 TEST(Mesh, GeometryFilesAreMeshed) {
