@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "cli/command.hpp"
@@ -9,6 +10,8 @@
 #include "core/hdf5_file.hpp"
 #include "core/mesh.hpp"
 #include "core/runtime.hpp"
+#include "data/dataset/dataset.hpp"
+#include "pipeline/graph_store.hpp"
 #include "preprocess/multilevel_file.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
@@ -16,6 +19,7 @@ namespace {
 
 struct PreprocessOptions {
   std::string mesh;
+  std::string data;
   std::string out;
   std::string seeding = "closecenter";
   std::string levels = "auto";
@@ -59,7 +63,58 @@ void print_table(const std::vector<bsms::LevelReport>& report) {
   }
 }
 
+// Every mesh topology of a dataset folder's splits, all with the same level count (the count
+// `auto` picks for the first training mesh, as training does), into the cache folder that
+// `bsms train` and `bsms rollout` read.
+void run_preprocess_data(const PreprocessOptions& options) {
+  namespace fs = std::filesystem;
+  bsms::Stopwatch total;
+  const int threads = bsms::set_num_threads(options.threads);
+  const bsms::Seeding seeding = bsms::parse_seeding(options.seeding);
+  const std::string out =
+      options.out.empty() ? (fs::path(options.data) / "multilevel").string() : options.out;
+  std::vector<bsms::Dataset> splits;
+  for (const char* split : {"train", "valid", "test"}) {
+    try {
+      splits.push_back(bsms::Dataset::open_split(options.data, split));
+    } catch (const bsms::InputError&) {
+      if (splits.empty() && std::string(split) == "train") throw;
+    }
+  }
+  int levels = parse_levels(options.levels);
+  if (levels == 0) levels = bsms::auto_levels(splits[0].mesh(0), seeding);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec || !fs::is_directory(out))
+    throw bsms::InputError(out + ": cannot create the output folder");
+  std::set<std::string> done;
+  std::printf("%-18s %8s %10s %12s %8s\n", "topology", "levels", "nodes", "edges(L0)", "ms");
+  for (const auto& d : splits) {
+    for (int64_t t = 0; t < d.num_trajectories(); ++t) {
+      const auto& mesh = d.mesh(t);
+      const std::string key = bsms::topology_key(mesh);
+      if (!done.insert(key).second) continue;
+      bsms::Stopwatch clock;
+      bsms::BuildOptions build;
+      build.seeding = seeding;
+      build.num_levels = levels;
+      build.seed = options.seed;
+      const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(bsms::to_mesh(mesh), build);
+      bsms::write_multilevel_graph(
+          graph, (fs::path(out) / bsms::multilevel_cache_name(seeding, levels, key)).string());
+      std::printf("%-18s %8d %10lld %12lld %8.1f\n", key.c_str(), graph.num_levels(),
+                  static_cast<long long>(graph.levels[0].num_nodes()),
+                  static_cast<long long>(graph.levels[0].graph.num_edges()), clock.milliseconds());
+    }
+  }
+  std::printf("%zu topologies, %d levels, seeding %s, %d threads, %.1f ms -> %s\n", done.size(),
+              levels, options.seeding.c_str(), threads, total.milliseconds(), out.c_str());
+}
+
 void run_preprocess(const PreprocessOptions& options) {
+  if (!options.data.empty()) return run_preprocess_data(options);
+  if (options.mesh.empty()) throw bsms::InputError("preprocess: give --mesh FILE or --data DIR");
+  if (options.out.empty()) throw bsms::InputError("preprocess --mesh needs --out FILE.h5");
   bsms::Stopwatch total;
   const int threads = bsms::set_num_threads(options.threads);
   bsms::BuildOptions build;
@@ -95,10 +150,14 @@ void run_preprocess(const PreprocessOptions& options) {
 BSMS_COMMAND(
     "preprocess", "build the bi-stride multilevel graph file of a mesh", [](CLI::App& sub) {
       auto options = std::make_shared<PreprocessOptions>();
-      sub.add_option("--mesh", options->mesh,
-                     "mesh read by gmsh (.msh 2.2/4.1, or a .geo meshed on the fly)")
-          ->required();
-      sub.add_option("--out", options->out, "multilevel graph file to write (HDF5)")->required();
+      auto* mesh = sub.add_option("--mesh", options->mesh,
+                                  "mesh read by gmsh (.msh 2.2/4.1, or a .geo meshed on the fly)");
+      auto* data = sub.add_option("--data", options->data,
+                                  "dataset folder: every mesh topology of its splits, written to "
+                                  "--out (default DATA/multilevel/) where bsms train finds them");
+      mesh->excludes(data);
+      sub.add_option("--out", options->out,
+                     "multilevel graph file to write (HDF5); with --data, a folder");
       sub.add_option("--seeding", options->seeding,
                      "seed per cluster: closecenter (nearest the mean position), minave (exact "
                      "minimum average BFS distance) or random")

@@ -1,0 +1,202 @@
+// Training and inference step time and memory of BSMS-GNN and MeshGraphNets on structured
+// triangulated rectangles: ~2.6K nodes with 5 levels and ~22K nodes with 7 levels, latent 128,
+// inputs like CylinderFlow (velocity, node type; mesh-space edge offsets), 2 threads by default.
+//   OMP_WAIT_POLICY=PASSIVE build-models/bench/bench_models [--benchmark_filter=...]
+// BSMS_BENCH_THREADS sets the thread count. "concat" variants run the reference implementation's
+// concat-then-Linear edge layer with the same parameters (models/layers.hpp, EdgeMlpMode).
+// Counters: median_ms / min_ms per step (wall), cpu_ms = median process CPU time per step (all
+// threads; robust to other load on the machine), peak_mb = peak RSS during the benchmark (process
+// peak reset first), delta_mb = peak minus RSS before the model and graph were built.
+#include <benchmark/benchmark.h>
+#include <malloc.h>
+#include <sys/resource.h>
+#include <torch/torch.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/graph.hpp"
+#include "core/runtime.hpp"
+#include "models/graph_ops.hpp"
+#include "models/networks.hpp"
+#include "preprocess/multilevel_graph.hpp"
+
+namespace {
+
+using bsms::EdgeMlpMode;
+
+struct Case {
+  int64_t nx, ny;
+  int levels;
+};
+const std::map<std::string, Case> kCases = {{"2.6K", {65, 40, 5}}, {"22K", {190, 116, 7}}};
+
+// Structured triangulated nx × ny rectangle (diagonals alternate direction by cell parity).
+bsms::MultilevelGraph make_graph(const Case& c, bsms::RowMatrixXd& positions) {
+  auto id = [&](int64_t x, int64_t y) { return y * c.nx + x; };
+  std::vector<int64_t> pairs;
+  positions.resize(c.nx * c.ny, 2);
+  for (int64_t y = 0; y < c.ny; ++y) {
+    for (int64_t x = 0; x < c.nx; ++x) {
+      positions(id(x, y), 0) = 0.01 * static_cast<double>(x);
+      positions(id(x, y), 1) = 0.01 * static_cast<double>(y);
+      if (x + 1 < c.nx) pairs.insert(pairs.end(), {id(x, y), id(x + 1, y)});
+      if (y + 1 < c.ny) pairs.insert(pairs.end(), {id(x, y), id(x, y + 1)});
+      if (x + 1 < c.nx && y + 1 < c.ny) {
+        if ((x + y) % 2 == 0) {
+          pairs.insert(pairs.end(), {id(x, y), id(x + 1, y + 1)});
+        } else {
+          pairs.insert(pairs.end(), {id(x + 1, y), id(x, y + 1)});
+        }
+      }
+    }
+  }
+  bsms::BuildOptions options;
+  options.num_levels = c.levels;
+  return bsms::build_multilevel_graph(bsms::graph_from_pairs(c.nx * c.ny, pairs), positions,
+                                      options);
+}
+
+double rss_mb(const char* field) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind(field, 0) == 0) return std::stod(line.substr(std::string(field).size())) / 1024;
+  }
+  return 0.0;
+}
+
+// Returns freed heap to the system and resets the peak RSS (VmHWM) to the current RSS.
+void reset_peak_rss() {
+  malloc_trim(0);
+  std::ofstream("/proc/self/clear_refs") << "5";
+}
+
+// CPU time of the whole process (all threads, user + system), in ms.
+double process_cpu_ms() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  auto ms = [](const timeval& t) { return t.tv_sec * 1e3 + t.tv_usec * 1e-3; };
+  return ms(usage.ru_utime) + ms(usage.ru_stime);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+void run_case(benchmark::State& state, const std::string& case_name, bool bsms_model, bool training,
+              EdgeMlpMode mode) {
+  torch::manual_seed(0);
+  const Case& c = kCases.at(case_name);
+  reset_peak_rss();
+  const double rss_before = rss_mb("VmRSS:");
+  bsms::RowMatrixXd positions;
+  auto graph = make_graph(c, positions);
+  auto hierarchy = bsms::make_hierarchy(graph, bsms_model ? 0 : 1);
+  const int64_t n = hierarchy.num_nodes(0);
+  bsms::GraphModelOptions o;
+  o.input_size = 3;
+  o.output_size = 2;
+  o.latent = 128;
+  o.position_dims = {2};
+  o.num_levels = bsms_model ? c.levels : 1;
+  o.message_passing_steps = 15;
+  std::shared_ptr<bsms::GraphModel> model;
+  if (bsms_model) {
+    model = std::make_shared<bsms::BsmsGnn>(o);
+  } else {
+    model = std::make_shared<bsms::MeshGraphNets>(o);
+  }
+  model->set_edge_mlp_mode(mode);
+  auto pos = torch::from_blob(positions.data(), {n, 2}, torch::kFloat64).to(torch::kFloat32);
+  auto nodes = torch::randn({n, 3});
+  auto target = torch::randn({n, 2});
+  torch::optim::Adam adam(model->parameters(), torch::optim::AdamOptions(1e-4));
+  auto step = [&] {
+    if (training) {
+      adam.zero_grad();
+      auto loss = (model->forward(nodes, {pos}, hierarchy) - target).square().mean();
+      loss.backward();
+      adam.step();
+    } else {
+      torch::InferenceMode guard;
+      auto out = model->forward(nodes, {pos}, hierarchy);
+      benchmark::DoNotOptimize(out.data_ptr<float>());
+    }
+  };
+  step();  // warm-up: allocator, Adam state
+  std::vector<double> ms, cpu_ms;
+  for (auto _ : state) {
+    const double cpu_start = process_cpu_ms();
+    bsms::Stopwatch clock;
+    step();
+    ms.push_back(clock.milliseconds());
+    cpu_ms.push_back(process_cpu_ms() - cpu_start);
+  }
+  int64_t edges = 0;
+  for (const auto& sets : hierarchy.edge_sets) edges += sets[0].num_edges();
+  state.counters["median_ms"] = median(ms);
+  state.counters["min_ms"] = *std::min_element(ms.begin(), ms.end());
+  state.counters["cpu_ms"] = median(cpu_ms);
+  state.counters["peak_mb"] = rss_mb("VmHWM:");
+  state.counters["delta_mb"] = rss_mb("VmHWM:") - rss_before;
+  state.counters["nodes"] = static_cast<double>(n);
+  state.counters["edges_all_levels"] = static_cast<double>(edges);
+  state.counters["threads"] = torch::get_num_threads();
+}
+
+void register_all() {
+  struct Variant {
+    const char* name;
+    bool bsms_model;
+    EdgeMlpMode mode;
+  };
+  const Variant variants[] = {{"bsms", true, EdgeMlpMode::kProjection},
+                              {"bsms_concat", true, EdgeMlpMode::kConcat},
+                              {"mgn", false, EdgeMlpMode::kProjection},
+                              {"mgn_concat", false, EdgeMlpMode::kConcat}};
+  for (const auto& [case_name, c] : kCases) {
+    for (const auto& v : variants) {
+      for (bool training : {true, false}) {
+        const std::string name =
+            std::string(training ? "train/" : "infer/") + v.name + "/" + case_name;
+        const bool big = c.nx * c.ny > 10000;
+        const int iterations = big ? (training ? 3 : 5) : (training ? 10 : 20);
+        const std::string cn = case_name;
+        const bool bsms_model = v.bsms_model;
+        const EdgeMlpMode mode = v.mode;
+        benchmark::RegisterBenchmark(name.c_str(),
+                                     [cn, bsms_model, training, mode](benchmark::State& state) {
+                                       run_case(state, cn, bsms_model, training, mode);
+                                     })
+            ->Iterations(iterations)
+            ->Unit(benchmark::kMillisecond);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // libgomp reads OMP_WAIT_POLICY when it loads: re-execute with it set (DESIGN.md "Dependencies").
+  if (std::getenv("OMP_WAIT_POLICY") == nullptr) {
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+    execv("/proc/self/exe", argv);
+  }
+  const char* env_threads = std::getenv("BSMS_BENCH_THREADS");
+  const int threads = bsms::set_num_threads(env_threads ? std::atoi(env_threads) : 2);
+  bsms::configure_threads(threads);
+  register_all();
+  benchmark::Initialize(&argc, argv);
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,544 @@
+#include "models/graph_ops.hpp"
+
+#include <ATen/Parallel.h>
+#include <ATen/ThreadLocalState.h>
+#include <ATen/record_function.h>
+#include <dlfcn.h>
+#include <torch/autograd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "core/error.hpp"
+
+namespace bsms {
+namespace {
+
+using torch::autograd::AutogradContext;
+using torch::autograd::variable_list;
+
+constexpr float kLayerNormEps = 1e-5f;
+
+int64_t grain_rows(int64_t channels) {
+  return std::max<int64_t>(1, 8192 / std::max<int64_t>(1, channels));
+}
+
+torch::Tensor checked_float(const torch::Tensor& t, const char* name) {
+  if (t.scalar_type() != torch::kFloat32 || t.dim() != 2) {
+    throw InputError(std::string("graph kernel: ") + name + " must be a 2-D float32 tensor, got " +
+                     std::string(c10::toString(t.scalar_type())) + " " +
+                     std::string(c10::str(t.sizes())));
+  }
+  return t.contiguous();
+}
+
+const int64_t* ptr(const torch::Tensor& t) {
+  return t.data_ptr<int64_t>();
+}
+
+// Row kernels on raw float rows of `channels` values. Cloned for x86-64-v3 (AVX2, FMA) with a
+// baseline fallback chosen at load time; `omp simd` lets the reductions vectorise.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
+#define BSMS_ROW_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define BSMS_ROW_KERNEL
+#endif
+
+// o = Σ_q w[q] · x[idx[q]] for q in [q0, q1); w may be null (weights 1).
+BSMS_ROW_KERNEL void gather_sum_row(const float* x, const int64_t* idx, const float* w, int64_t q0,
+                                    int64_t q1, int64_t channels, float* o) {
+  for (int64_t c = 0; c < channels; ++c) o[c] = 0.0f;
+  for (int64_t q = q0; q < q1; ++q) {
+    const float* xs = x + idx[q] * channels;
+    const float wq = w ? w[q] : 1.0f;
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) o[c] += wq * xs[c];
+  }
+}
+
+// m = g where o > 0 else 0, for rows [r0, r1); sum += Σ_rows m.
+BSMS_ROW_KERNEL void relu_mask_rows(const float* o, const float* g, int64_t r0, int64_t r1,
+                                    int64_t channels, float* m, float* sum) {
+  for (int64_t i = r0 * channels; i < r1 * channels; i += channels) {
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) {
+      const float v = o[i + c] > 0.0f ? g[i + c] : 0.0f;
+      m[i + c] = v;
+      sum[c] += v;
+    }
+  }
+}
+
+// sum += Σ_rows g for rows [r0, r1).
+BSMS_ROW_KERNEL void column_sum_rows(const float* g, int64_t r0, int64_t r1, int64_t channels,
+                                     float* sum) {
+  for (int64_t i = r0 * channels; i < r1 * channels; i += channels) {
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) sum[c] += g[i + c];
+  }
+}
+
+// Rows [r0, r1) of y: y = relu?(y + bias?).
+BSMS_ROW_KERNEL void bias_relu_rows(float* y, const float* bias, bool relu, int64_t r0, int64_t r1,
+                                    int64_t channels) {
+  for (int64_t i = r0 * channels; i < r1 * channels; i += channels) {
+    if (bias) {
+#pragma omp simd
+      for (int64_t c = 0; c < channels; ++c) y[i + c] += bias[c];
+    }
+    if (relu) {
+#pragma omp simd
+      for (int64_t c = 0; c < channels; ++c) y[i + c] = std::max(y[i + c], 0.0f);
+    }
+  }
+}
+
+// o = relu(base? + bias + a + b + Σ_q f[q] · wt[q]) for one edge; wt [K, C].
+BSMS_ROW_KERNEL void edge_first_row(const float* base, const float* bias, const float* a,
+                                    const float* b, const float* f, const float* wt, int64_t k,
+                                    int64_t channels, float* o) {
+#pragma omp simd
+  for (int64_t c = 0; c < channels; ++c) o[c] = (base ? base[c] : 0.0f) + bias[c] + a[c] + b[c];
+  for (int64_t q = 0; q < k; ++q) {
+    const float fq = f[q];
+    const float* w = wt + q * channels;
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) o[c] += fq * w[c];
+  }
+#pragma omp simd
+  for (int64_t c = 0; c < channels; ++c) o[c] = std::max(o[c], 0.0f);
+}
+
+// Layer norm of x + bias (no affine): returns (mean, 1/std) and adds the normalised row to o.
+BSMS_ROW_KERNEL void layer_norm_accumulate_row(const float* x, const float* bias, int64_t channels,
+                                               float eps, float* stats, float* o) {
+  float sum = 0.0f;
+#pragma omp simd reduction(+ : sum)
+  for (int64_t c = 0; c < channels; ++c) sum += x[c] + bias[c];
+  const float mean = sum / static_cast<float>(channels);
+  float var = 0.0f;
+#pragma omp simd reduction(+ : var)
+  for (int64_t c = 0; c < channels; ++c) {
+    const float d = x[c] + bias[c] - mean;
+    var += d * d;
+  }
+  const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + eps);
+  stats[0] = mean;
+  stats[1] = rstd;
+#pragma omp simd
+  for (int64_t c = 0; c < channels; ++c) o[c] += (x[c] + bias[c] - mean) * rstd;
+}
+
+// Layer-norm backward for one row: d = rstd (g - mean(g) - x̂ mean(g x̂)); sum_d += d.
+BSMS_ROW_KERNEL void layer_norm_backward_row(const float* x, const float* bias, const float* g,
+                                             const float* stats, int64_t channels, float* d,
+                                             float* sum_d) {
+  const float mean = stats[0], rstd = stats[1];
+  float sum_g = 0.0f, sum_gx = 0.0f;
+#pragma omp simd reduction(+ : sum_g, sum_gx)
+  for (int64_t c = 0; c < channels; ++c) {
+    sum_g += g[c];
+    sum_gx += g[c] * (x[c] + bias[c] - mean);
+  }
+  const float inv_c = 1.0f / static_cast<float>(channels);
+  const float mg = sum_g * inv_c;
+  const float mgx = sum_gx * inv_c * rstd;
+#pragma omp simd
+  for (int64_t c = 0; c < channels; ++c) {
+    d[c] = rstd * (g[c] - mg - (x[c] + bias[c] - mean) * rstd * mgx);
+    sum_d[c] += d[c];
+  }
+}
+
+// out[n, :] = Σ_{q ∈ [off[n], off[n+1])} w[q] · x[idx[q], :]; w may be null (weights 1).
+void segment_gather_sum(const float* x, int64_t channels, const int64_t* off, const int64_t* idx,
+                        const float* w, int64_t rows, float* out) {
+  at::parallel_for(0, rows, grain_rows(channels), [&](int64_t begin, int64_t end) {
+    for (int64_t n = begin; n < end; ++n) {
+      gather_sum_row(x, idx, w, off[n], off[n + 1], channels, out + n * channels);
+    }
+  });
+}
+
+torch::Tensor segment_sum_tensor(const torch::Tensor& x, const torch::Tensor& offsets,
+                                 const torch::Tensor& order, int64_t rows) {
+  auto xc = x.contiguous();
+  auto out = torch::empty({rows, xc.size(1)}, xc.options());
+  segment_gather_sum(xc.data_ptr<float>(), xc.size(1), ptr(offsets), ptr(order), nullptr, rows,
+                     out.data_ptr<float>());
+  return out;
+}
+
+torch::Tensor sparse_rows(const torch::Tensor& x, const torch::Tensor& offsets,
+                          const torch::Tensor& columns, const torch::Tensor& values, int64_t rows) {
+  auto xc = x.contiguous();
+  auto out = torch::empty({rows, xc.size(1)}, xc.options());
+  segment_gather_sum(xc.data_ptr<float>(), xc.size(1), ptr(offsets), ptr(columns),
+                     values.data_ptr<float>(), rows, out.data_ptr<float>());
+  return out;
+}
+
+void check_edges(const torch::Tensor& t, const EdgeIndex& edges, const char* name, bool per_edge) {
+  const int64_t expected = per_edge ? edges.num_edges() : edges.num_nodes;
+  if (t.size(0) != expected) {
+    throw InputError(std::string("graph kernel: ") + name + " has " + std::to_string(t.size(0)) +
+                     " rows, expected " + std::to_string(expected) +
+                     (per_edge ? " (one per edge)" : " (one per node)"));
+  }
+}
+
+// Column sums of rows [0, rows) produced by body(begin, end, partial) over fixed blocks, so the
+// result does not depend on the thread count. body adds its rows into partial [C].
+template <class Body>
+torch::Tensor blocked_column_sum(int64_t rows, int64_t channels, const Body& body) {
+  const int64_t block = std::max<int64_t>(grain_rows(channels), (rows + 63) / 64);
+  const int64_t blocks = std::max<int64_t>(1, (rows + block - 1) / block);
+  auto partial = torch::zeros({blocks, channels}, torch::kFloat32);
+  float* pp = partial.data_ptr<float>();
+  at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
+    for (int64_t blk = b0; blk < b1; ++blk) {
+      body(blk * block, std::min(rows, (blk + 1) * block), pp + blk * channels);
+    }
+  });
+  return partial.sum(0);
+}
+
+// grad * (out > 0) into masked, returning the column sums of masked.
+torch::Tensor relu_mask(const torch::Tensor& out, const torch::Tensor& grad,
+                        torch::Tensor& masked) {
+  const int64_t rows = out.size(0), channels = out.size(1);
+  masked = torch::empty_like(grad);
+  const float* po = out.data_ptr<float>();
+  const float* pg = grad.data_ptr<float>();
+  float* pm = masked.data_ptr<float>();
+  return blocked_column_sum(rows, channels, [&](int64_t begin, int64_t end, float* sum) {
+    relu_mask_rows(po, pg, begin, end, channels, pm, sum);
+  });
+}
+
+struct EdgeFirstLayer : torch::autograd::Function<EdgeFirstLayer> {
+  static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& base_in,
+                               const torch::Tensor& features_in, const torch::Tensor& weight_in,
+                               const torch::Tensor& bias_in, const torch::Tensor& a_in,
+                               const torch::Tensor& b_in, const EdgeIndex& edges) {
+    auto features = checked_float(features_in, "features");
+    auto weight = checked_float(weight_in, "weight");
+    auto a = checked_float(a_in, "a");
+    auto b = checked_float(b_in, "b");
+    auto bias = bias_in.contiguous();
+    const bool has_base = base_in.dim() == 2;  // an empty 1-D tensor means "no base"
+    torch::Tensor base = has_base ? checked_float(base_in, "base") : torch::Tensor();
+    check_edges(features, edges, "features", true);
+    check_edges(a, edges, "a", false);
+    check_edges(b, edges, "b", false);
+    const int64_t num_edges = features.size(0), channels = a.size(1), k = features.size(1);
+    if (b.size(1) != channels || weight.size(0) != channels || weight.size(1) != k ||
+        bias.numel() != channels ||
+        (has_base && (base.size(0) != num_edges || base.size(1) != channels))) {
+      throw InputError("graph kernel: edge_first_layer shape mismatch");
+    }
+    // weightᵀ [K, C] so that the inner loop runs over contiguous channels.
+    auto wt = weight.t().contiguous();
+    auto out = torch::empty({num_edges, channels}, a.options());
+    const float* pbase = has_base ? base.data_ptr<float>() : nullptr;
+    const float* pf = features.data_ptr<float>();
+    const float* pw = wt.data_ptr<float>();
+    const float* pbias = bias.data_ptr<float>();
+    const float* pa = a.data_ptr<float>();
+    const float* pb = b.data_ptr<float>();
+    const int64_t* s = ptr(edges.senders);
+    const int64_t* r = ptr(edges.receivers);
+    float* po = out.data_ptr<float>();
+    at::parallel_for(0, num_edges, grain_rows(channels), [&](int64_t begin, int64_t end) {
+      for (int64_t e = begin; e < end; ++e) {
+        edge_first_row(pbase ? pbase + e * channels : nullptr, pbias, pa + s[e] * channels,
+                       pb + r[e] * channels, pf + e * k, pw, k, channels, po + e * channels);
+      }
+    });
+    ctx->save_for_backward({out, features, weight});
+    ctx->saved_data["has_base"] = has_base;
+    ctx->saved_data["sender_offsets"] = edges.sender_offsets;
+    ctx->saved_data["sender_order"] = edges.sender_order;
+    ctx->saved_data["receiver_offsets"] = edges.receiver_offsets;
+    ctx->saved_data["receiver_order"] = edges.receiver_order;
+    ctx->saved_data["num_nodes"] = edges.num_nodes;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto saved = ctx->get_saved_variables();
+    const auto& out = saved[0];
+    const auto& features = saved[1];
+    const auto& weight = saved[2];
+    auto grad = grads[0].contiguous();
+    torch::Tensor masked;
+    auto grad_bias = relu_mask(out, grad, masked);
+    const int64_t nodes = ctx->saved_data["num_nodes"].toInt();
+    torch::Tensor grad_features, grad_weight, ga, gb;
+    if (ctx->needs_input_grad(1)) grad_features = masked.mm(weight);
+    if (ctx->needs_input_grad(2)) grad_weight = masked.t().mm(features);
+    if (ctx->needs_input_grad(4)) {
+      ga = segment_sum_tensor(masked, ctx->saved_data["sender_offsets"].toTensor(),
+                              ctx->saved_data["sender_order"].toTensor(), nodes);
+    }
+    if (ctx->needs_input_grad(5)) {
+      gb = segment_sum_tensor(masked, ctx->saved_data["receiver_offsets"].toTensor(),
+                              ctx->saved_data["receiver_order"].toTensor(), nodes);
+    }
+    const bool has_base = ctx->saved_data["has_base"].toBool();
+    return {has_base ? masked : torch::Tensor(),
+            grad_features,
+            grad_weight,
+            grad_bias,
+            ga,
+            gb,
+            torch::Tensor()};
+  }
+};
+
+// Runs fn(begin, end) over [0, rows) in blocks of at least min_rows, one block per thread. The
+// caller's thread-local state (grad and inference mode) is set on the workers, which call ATen.
+template <class Fn>
+void parallel_blocks(int64_t rows, int64_t min_rows, const Fn& fn) {
+  const int64_t threads = at::in_parallel_region() ? 1 : at::get_num_threads();
+  const int64_t blocks =
+      std::max<int64_t>(1, std::min(threads, rows / std::max<int64_t>(1, min_rows)));
+  if (blocks == 1) {
+    fn(0, rows);
+    return;
+  }
+  const int64_t block = (rows + blocks - 1) / blocks;
+  const at::ThreadLocalState state;
+  at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
+    const at::ThreadLocalStateGuard guard(state);
+    for (int64_t b = b0; b < b1; ++b) fn(b * block, std::min(rows, (b + 1) * block));
+  });
+}
+
+constexpr int64_t kMinGemmRows = 256;
+
+struct LinearFn : torch::autograd::Function<LinearFn> {
+  static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& x_in,
+                               const torch::Tensor& weight_in, const torch::Tensor& bias_in,
+                               bool relu) {
+    // Detached: the blocks call ATen ops with out= arguments, which refuse tensors needing grad.
+    auto x = checked_float(x_in, "x").detach();
+    auto weight = checked_float(weight_in, "weight").detach();
+    const int64_t rows = x.size(0), out_size = weight.size(0);
+    if (weight.size(1) != x.size(1)) {
+      throw InputError("linear: input has " + std::to_string(x.size(1)) +
+                       " channels, weight expects " + std::to_string(weight.size(1)));
+    }
+    const bool has_bias = bias_in.dim() == 1;  // a 0-D tensor means "no bias"
+    auto bias = has_bias ? bias_in.contiguous() : torch::Tensor();
+    if (has_bias && bias.numel() != out_size) throw InputError("linear: bias size mismatch");
+    auto y = torch::empty({rows, out_size}, x.options());
+    auto wt = weight.t();
+    const float* pb = has_bias ? bias.data_ptr<float>() : nullptr;
+    parallel_blocks(rows, kMinGemmRows, [&](int64_t r0, int64_t r1) {
+      auto yb = y.slice(0, r0, r1);
+      at::mm_out(yb, x.slice(0, r0, r1), wt);
+      if (pb || relu) bias_relu_rows(y.data_ptr<float>(), pb, relu, r0, r1, out_size);
+    });
+    ctx->save_for_backward({x, weight, relu ? y : torch::Tensor()});
+    ctx->saved_data["relu"] = relu;
+    ctx->saved_data["has_bias"] = has_bias;
+    return y;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto saved = ctx->get_saved_variables();
+    const auto x = saved[0].detach();
+    const auto weight = saved[1].detach();
+    const bool relu = ctx->saved_data["relu"].toBool();
+    const bool has_bias = ctx->saved_data["has_bias"].toBool();
+    auto grad = grads[0].contiguous().detach();
+    torch::Tensor grad_bias;
+    if (relu) {
+      torch::Tensor masked;
+      grad_bias = relu_mask(saved[2], grad, masked);
+      grad = masked;
+    } else if (has_bias && ctx->needs_input_grad(2)) {
+      const float* pg = grad.data_ptr<float>();
+      const int64_t channels = grad.size(1);
+      grad_bias = blocked_column_sum(grad.size(0), channels, [&](int64_t b, int64_t e, float* s) {
+        column_sum_rows(pg, b, e, channels, s);
+      });
+    }
+    torch::Tensor grad_x, grad_weight;
+    if (ctx->needs_input_grad(0)) {
+      grad_x = torch::empty_like(x);
+      parallel_blocks(x.size(0), kMinGemmRows, [&](int64_t r0, int64_t r1) {
+        auto gb = grad_x.slice(0, r0, r1);
+        at::mm_out(gb, grad.slice(0, r0, r1), weight);
+      });
+    }
+    if (ctx->needs_input_grad(1)) {
+      // dW = gradᵀ x, split over output channels (blocks of at least 32 rows of dW).
+      grad_weight = torch::empty_like(weight);
+      parallel_blocks(weight.size(0), 32, [&](int64_t o0, int64_t o1) {
+        auto gw = grad_weight.slice(0, o0, o1);
+        at::mm_out(gw, grad.slice(1, o0, o1).t(), x);
+      });
+    }
+    return {grad_x, grad_weight, has_bias ? grad_bias : torch::Tensor(), torch::Tensor()};
+  }
+};
+
+struct LayerNormSegmentSum : torch::autograd::Function<LayerNormSegmentSum> {
+  static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& x_in,
+                               const torch::Tensor& bias_in, const EdgeIndex& edges) {
+    auto x = checked_float(x_in, "x");
+    auto bias = bias_in.contiguous();
+    check_edges(x, edges, "x", true);
+    const int64_t num_edges = x.size(0), channels = x.size(1), nodes = edges.num_nodes;
+    if (bias.numel() != channels) throw InputError("graph kernel: layer norm bias size mismatch");
+    const float* pbias = bias.data_ptr<float>();
+    auto out = torch::empty({nodes, channels}, x.options());
+    auto stats = torch::empty({num_edges, 2}, x.options());  // mean, 1/std per edge
+    const float* px = x.data_ptr<float>();
+    float* po = out.data_ptr<float>();
+    float* ps = stats.data_ptr<float>();
+    const int64_t* off = ptr(edges.receiver_offsets);
+    const int64_t* order = ptr(edges.receiver_order);
+    at::parallel_for(0, nodes, grain_rows(channels) / 4 + 1, [&](int64_t begin, int64_t end) {
+      for (int64_t j = begin; j < end; ++j) {
+        float* o = po + j * channels;
+        std::fill(o, o + channels, 0.0f);
+        for (int64_t q = off[j]; q < off[j + 1]; ++q) {
+          const int64_t e = order[q];
+          layer_norm_accumulate_row(px + e * channels, pbias, channels, kLayerNormEps, ps + 2 * e,
+                                    o);
+        }
+      }
+    });
+    ctx->save_for_backward({x, bias, stats});
+    ctx->saved_data["receivers"] = edges.receivers;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto saved = ctx->get_saved_variables();
+    const auto& x = saved[0];
+    const auto& bias = saved[1];
+    const auto& stats = saved[2];
+    auto grad = grads[0].contiguous();
+    auto receivers = ctx->saved_data["receivers"].toTensor();
+    const int64_t num_edges = x.size(0), channels = x.size(1);
+    auto dx = torch::empty_like(x);
+    const float* px = x.data_ptr<float>();
+    const float* pbias = bias.data_ptr<float>();
+    const float* ps = stats.data_ptr<float>();
+    const float* pg = grad.data_ptr<float>();
+    const int64_t* r = ptr(receivers);
+    float* pd = dx.data_ptr<float>();
+    auto grad_bias =
+        blocked_column_sum(num_edges, channels, [&](int64_t begin, int64_t end, float* sum_d) {
+          for (int64_t e = begin; e < end; ++e) {
+            layer_norm_backward_row(px + e * channels, pbias, pg + r[e] * channels, ps + 2 * e,
+                                    channels, pd + e * channels, sum_d);
+          }
+        });
+    return {dx, grad_bias, torch::Tensor()};
+  }
+};
+
+struct SegmentSum : torch::autograd::Function<SegmentSum> {
+  static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& x_in,
+                               const EdgeIndex& edges) {
+    auto x = checked_float(x_in, "x");
+    check_edges(x, edges, "x", true);
+    ctx->saved_data["receivers"] = edges.receivers;
+    return segment_sum_tensor(x, edges.receiver_offsets, edges.receiver_order, edges.num_nodes);
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    return {grads[0].index_select(0, ctx->saved_data["receivers"].toTensor()), torch::Tensor()};
+  }
+};
+
+// Sparse product with a transition matrix (down: D v) or its transpose (up: Dᵀ v).
+struct SparseTransfer : torch::autograd::Function<SparseTransfer> {
+  static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& v_in,
+                               const LevelTransition& t, bool up) {
+    auto v = checked_float(v_in, "v");
+    const int64_t in_rows = up ? t.coarse_nodes : t.fine_nodes;
+    if (v.size(0) != in_rows) {
+      throw InputError("transition: input has " + std::to_string(v.size(0)) + " rows, expected " +
+                       std::to_string(in_rows) + (up ? " (coarse nodes)" : " (fine nodes)"));
+    }
+    ctx->saved_data["up"] = up;
+    ctx->saved_data["down_offsets"] = t.down_offsets;
+    ctx->saved_data["down_columns"] = t.down_columns;
+    ctx->saved_data["down_values"] = t.down_values;
+    ctx->saved_data["up_offsets"] = t.up_offsets;
+    ctx->saved_data["up_columns"] = t.up_columns;
+    ctx->saved_data["up_values"] = t.up_values;
+    ctx->saved_data["fine"] = t.fine_nodes;
+    ctx->saved_data["coarse"] = t.coarse_nodes;
+    return up ? sparse_rows(v, t.up_offsets, t.up_columns, t.up_values, t.fine_nodes)
+              : sparse_rows(v, t.down_offsets, t.down_columns, t.down_values, t.coarse_nodes);
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto& d = ctx->saved_data;
+    // The adjoint of D is Dᵀ and vice versa.
+    const bool up = d["up"].toBool();
+    const std::string p = up ? "down_" : "up_";
+    const int64_t rows = up ? d["coarse"].toInt() : d["fine"].toInt();
+    auto g = sparse_rows(grads[0], d[p + "offsets"].toTensor(), d[p + "columns"].toTensor(),
+                         d[p + "values"].toTensor(), rows);
+    return {g, torch::Tensor(), torch::Tensor()};
+  }
+};
+
+}  // namespace
+
+torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& features,
+                               const torch::Tensor& weight, const torch::Tensor& bias,
+                               const torch::Tensor& a, const torch::Tensor& b,
+                               const EdgeIndex& edges) {
+  RECORD_FUNCTION("bsms::edge_first_layer", std::vector<c10::IValue>());
+  // Custom functions take no undefined inputs: an empty 1-D tensor stands for "no base".
+  return EdgeFirstLayer::apply(base.defined() ? base : torch::empty({0}), features, weight, bias, a,
+                               b, edges);
+}
+
+torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
+                     bool relu) {
+  RECORD_FUNCTION("bsms::linear", std::vector<c10::IValue>());
+  return LinearFn::apply(x, weight, bias.defined() ? bias : torch::empty({}), relu);
+}
+
+int configure_threads(int threads) {
+  if (threads > 0) torch::set_num_threads(threads);
+  using SetThreads = void (*)(int);
+  if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) {
+    set(1);
+  }
+  return torch::get_num_threads();
+}
+
+torch::Tensor layer_norm_segment_sum(const torch::Tensor& x, const torch::Tensor& bias,
+                                     const EdgeIndex& edges) {
+  RECORD_FUNCTION("bsms::layer_norm_segment_sum", std::vector<c10::IValue>());
+  return LayerNormSegmentSum::apply(x, bias, edges);
+}
+
+torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges) {
+  RECORD_FUNCTION("bsms::segment_sum", std::vector<c10::IValue>());
+  return SegmentSum::apply(x, edges);
+}
+
+torch::Tensor transfer_down(const torch::Tensor& v, const LevelTransition& transition) {
+  RECORD_FUNCTION("bsms::transfer_down", std::vector<c10::IValue>());
+  return SparseTransfer::apply(v, transition, false);
+}
+
+torch::Tensor transfer_up(const torch::Tensor& v, const LevelTransition& transition) {
+  RECORD_FUNCTION("bsms::transfer_up", std::vector<c10::IValue>());
+  return SparseTransfer::apply(v, transition, true);
+}
+
+}  // namespace bsms

@@ -1,0 +1,46 @@
+// Fused linear, gather and segment-sum kernels with autograd, on contiguous float32 tensors. Sums
+// over the edges of a node run as segment reductions in EdgeIndex order: deterministic, no atomics,
+// parallel over nodes with the LibTorch thread pool.
+#pragma once
+
+#include <torch/types.h>
+
+#include "models/graph_tensors.hpp"
+
+namespace bsms {
+
+// The first layer of an edge MLP as a sum of per-node projections, with its ReLU:
+//   relu(base[e] + features[e] · weightᵀ + bias + a[senders[e]] + b[receivers[e]]).
+// base [E, C] or undefined; features [E, K] (K may be 0) with weight [C, K]; bias [C];
+// a and b [N, C] -> [E, C].
+torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& features,
+                               const torch::Tensor& weight, const torch::Tensor& bias,
+                               const torch::Tensor& a, const torch::Tensor& b,
+                               const EdgeIndex& edges);
+
+// x · weightᵀ + bias, optionally followed by ReLU. The GEMMs are split over the LibTorch threads
+// (row blocks; output blocks for the weight gradient) with single-threaded BLAS calls, and bias
+// and ReLU are applied to each block while it is in cache.
+// x [R, in], weight [out, in], bias [out] or undefined -> [R, out].
+torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
+                     bool relu);
+
+// Sets LibTorch's thread count (<= 0: keep it) and makes OpenBLAS, when loaded, single-threaded:
+// linear() splits GEMMs over LibTorch's passive OpenMP pool instead, so no second pool of spinning
+// BLAS threads competes for the cores. Returns the LibTorch thread count.
+int configure_threads(int threads);
+
+// out[j] = Σ_{e: receivers[e] = j} layer_norm(x[e] + bias) (no affine, eps 1e-5), without storing
+// the normalised edge tensor. x [E, C], bias [C] -> [N, C].
+torch::Tensor layer_norm_segment_sum(const torch::Tensor& x, const torch::Tensor& bias,
+                                     const EdgeIndex& edges);
+
+// out[j] = Σ_{e: receivers[e] = j} x[e]. x [E, C] -> [N, C].
+torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges);
+
+// Down transition: D v, v [N_fine, C] -> [N_coarse, C] (models/graph_tensors.hpp).
+torch::Tensor transfer_down(const torch::Tensor& v, const LevelTransition& transition);
+// Up transition: Dᵀ v, v [N_coarse, C] -> [N_fine, C].
+torch::Tensor transfer_up(const torch::Tensor& v, const LevelTransition& transition);
+
+}  // namespace bsms

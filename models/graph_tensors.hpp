@@ -1,0 +1,95 @@
+// Index tensors of (batched) multilevel graphs, precomputed once per mesh for the graph kernels.
+#pragma once
+
+#include <torch/types.h>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "preprocess/multilevel_graph.hpp"
+
+namespace bsms {
+
+// One directed edge set with edges grouped both by sender and by receiver (stable counting sort),
+// so that sums over the edges of a node are contiguous segment reductions without atomics.
+struct EdgeIndex {
+  int64_t num_nodes = 0;
+  torch::Tensor senders;    // [E] int64
+  torch::Tensor receivers;  // [E] int64
+  torch::Tensor
+      sender_offsets;  // [N + 1] int64: edges of sender i are sender_order[off[i]..off[i+1])
+  torch::Tensor sender_order;      // [E] int64 edge ids grouped by sender
+  torch::Tensor receiver_offsets;  // [N + 1] int64
+  torch::Tensor receiver_order;    // [E] int64 edge ids grouped by receiver
+
+  int64_t num_edges() const { return senders.defined() ? senders.size(0) : 0; }
+
+  // From (sender, receiver) pairs, [E, 2] int64 (any order; duplicates allowed). InputError when
+  // an index is outside [0, num_nodes).
+  static EdgeIndex from_pairs(const torch::Tensor& edges, int64_t num_nodes);
+  static EdgeIndex from_csr(const CsrGraph& graph);
+  static EdgeIndex from_edge_list(const EdgeList& edges, int64_t num_nodes);  // InputError as above
+  static EdgeIndex empty(int64_t num_nodes);
+};
+
+// Non-parametric transition between level k (fine) and k+1 (coarse), DESIGN.md item 6, as a sparse
+// matrix D [N_coarse, N_fine]: D[c, i] = down_weight of the fine edge i -> pooled[c].
+// Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine = Dᵀ v_coarse.
+struct LevelTransition {
+  int64_t fine_nodes = 0;
+  int64_t coarse_nodes = 0;
+  torch::Tensor down_offsets;  // [N_coarse + 1] int64, CSR rows of D
+  torch::Tensor down_columns;  // [nnz] int64, fine node ids
+  torch::Tensor down_values;   // [nnz] float32
+  torch::Tensor up_offsets;    // [N_fine + 1] int64, CSR rows of Dᵀ
+  torch::Tensor up_columns;    // [nnz] int64, coarse node ids
+  torch::Tensor up_values;     // [nnz] float32
+};
+
+// The tensors a model needs for one graph or a block-diagonal batch of graphs.
+struct GraphHierarchy {
+  std::vector<std::vector<EdgeIndex>> edge_sets;   // [level][set]; set 0 = mesh edges
+  std::vector<LevelTransition> transitions;        // [level], level k -> k+1; size num_levels - 1
+  std::vector<std::vector<int64_t>> node_offsets;  // [level][graph + 1] node range of each graph
+
+  int num_levels() const { return static_cast<int>(edge_sets.size()); }
+  int num_graphs() const;
+  int64_t num_nodes(int level) const;
+
+  // A copy with extra edge sets (e.g. contact edges) appended after the existing ones:
+  // extra[level][s] is an [E, 2] int64 tensor of (sender, receiver) in this hierarchy's numbering.
+  // Levels missing from `extra` get empty sets, so every level has the same number of sets.
+  GraphHierarchy with_edge_sets(const std::vector<std::vector<torch::Tensor>>& extra) const;
+  GraphHierarchy with_edge_sets(const std::vector<std::vector<EdgeIndex>>& extra) const;
+  // One extra set per level, e.g. enhance_contact_edges_all_levels() (preprocess/).
+  GraphHierarchy with_edge_sets(const std::vector<EdgeList>& per_level) const;
+};
+
+// Tensors of a multilevel graph; max_levels > 0 keeps only the finest max_levels levels.
+GraphHierarchy make_hierarchy(const MultilevelGraph& graph, int max_levels = 0);
+
+// Block-diagonal merge of several hierarchies (different meshes allowed) with the same number of
+// levels; graph g's nodes follow those of graphs 0..g-1 at every level. Node features of the batch
+// are torch::cat of the graphs' features along dim 0. InputError on a level-count mismatch.
+GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graphs);
+
+// Builds each mesh's hierarchy once and keeps it (and the last batch merged) for later steps.
+class HierarchyCache {
+ public:
+  explicit HierarchyCache(int max_levels = 0) : max_levels_(max_levels) {}
+  const GraphHierarchy& get(const std::string& key, const MultilevelGraph& graph);
+  bool contains(const std::string& key) const { return single_.count(key) != 0; }
+  // The merged batch of cached meshes (all keys must have been added with get()).
+  const GraphHierarchy& batch(const std::vector<std::string>& keys);
+
+ private:
+  int max_levels_;
+  std::map<std::string, std::shared_ptr<GraphHierarchy>> single_;
+  std::vector<std::string> last_batch_keys_;
+  GraphHierarchy last_batch_;
+};
+
+}  // namespace bsms

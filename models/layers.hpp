@@ -1,0 +1,87 @@
+// Building blocks shared by BSMS-GNN and MeshGraphNets (thesis §4.3.1, §4.4.2.1): MLP, edge
+// features, the BSMS message-passing block and the running-statistics normalizer.
+#pragma once
+
+#include <torch/nn/module.h>
+#include <torch/nn/modules/linear.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "models/graph_tensors.hpp"
+
+namespace bsms {
+
+// Linear -> ReLU -> Linear -> ReLU -> Linear, hidden width `hidden`, optional LayerNorm (no affine
+// parameters, eps 1e-5) on the output.
+class Mlp : public torch::nn::Module {
+ public:
+  Mlp(int64_t in_size, int64_t hidden, int64_t out_size, bool layer_norm);
+  // [R, in] -> [R, out], bias and ReLU fused (models/graph_ops.hpp).
+  torch::Tensor forward(const torch::Tensor& x);
+  // The same with plain LibTorch modules and ops, as the reference implementation evaluates it.
+  torch::Tensor forward_reference(const torch::Tensor& x);
+  // Layer 2 with its ReLU, from the first layer's ReLU output: [R, hidden] -> [R, hidden].
+  torch::Tensor second_layer(const torch::Tensor& hidden);
+  // Layers 2 and 3 (no LayerNorm): [R, hidden] -> [R, out].
+  torch::Tensor tail(const torch::Tensor& hidden);
+
+  const torch::nn::Linear& first() const { return first_; }
+  const torch::nn::Linear& third() const { return third_; }
+  bool layer_norm() const { return layer_norm_; }
+  int64_t in_size() const { return first_->options.in_features(); }
+
+ private:
+  torch::nn::Linear first_{nullptr}, second_{nullptr}, third_{nullptr};
+  bool layer_norm_;
+};
+
+// Edge features [Δp, |Δp|] for each position field in `fields` (Δp = p[sender] - p[receiver]),
+// concatenated: positions[f] [N, d_f] -> [E, Σ_f (d_f + 1)].
+torch::Tensor edge_features(const std::vector<torch::Tensor>& positions,
+                            const std::vector<int64_t>& fields, const EdgeIndex& edges);
+
+// How the first edge-MLP layer is evaluated. kProjection: W·[f, v_i, v_j] = W_f f + (W_i v)[i] +
+// (W_j v)[j] with node-sized matmuls and fused gather/segment-sum kernels. kConcat: the plain
+// concat-then-Linear formulation of the reference implementation (same parameters, same math).
+enum class EdgeMlpMode { kProjection, kConcat };
+
+// One BSMS message-passing pass (thesis eq. 4.2) over S edge sets: per set s,
+// e = f_s([features, v_sender, v_receiver]); v' = v + f_V([v, Σ_j e¹, …, Σ_j eˢ]).
+class MessagePassing : public torch::nn::Module {
+ public:
+  MessagePassing(int64_t latent, const std::vector<int64_t>& edge_feature_sizes);
+  // v [N, L]; features[s] [E_s, F_s]; edges.size() >= S (extra sets are ignored). -> [N, L]
+  torch::Tensor forward(const torch::Tensor& v, const std::vector<torch::Tensor>& features,
+                        const std::vector<EdgeIndex>& edges, EdgeMlpMode mode);
+
+ private:
+  std::vector<std::shared_ptr<Mlp>> edge_mlps_;
+  std::shared_ptr<Mlp> node_mlp_;
+};
+
+// Running mean and standard deviation of features, accumulated over calls (max_accumulations
+// calls at most) and saved with the model as float64 buffers.
+class Normalizer : public torch::nn::Module {
+ public:
+  explicit Normalizer(int64_t size, int64_t max_accumulations = 1000000, double std_epsilon = 1e-8);
+  // Adds the rows of x [R, C] to the statistics (no-op once max_accumulations is reached).
+  void accumulate(const torch::Tensor& x);
+  torch::Tensor normalize(const torch::Tensor& x) const;  // [R, C] -> [R, C] float32
+  torch::Tensor inverse(const torch::Tensor& x) const;    // [R, C] -> [R, C] float32
+  torch::Tensor mean() const;                             // [C] float64
+  torch::Tensor std() const;                              // [C] float64, >= std_epsilon
+  int64_t size() const { return size_; }
+
+ private:
+  int64_t size_;
+  torch::Tensor count_;              // [1] float64: rows accumulated
+  torch::Tensor num_accumulations_;  // [1] float64: calls accumulated
+  torch::Tensor max_accumulations_;  // [1] float64
+  torch::Tensor std_epsilon_;        // [1] float64
+  torch::Tensor sum_;                // [C] float64
+  torch::Tensor sum_squares_;        // [C] float64
+};
+
+}  // namespace bsms

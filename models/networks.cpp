@@ -1,0 +1,233 @@
+#include "models/networks.hpp"
+
+#include <ATen/ops/layer_norm.h>
+
+#include <numeric>
+
+#include "core/error.hpp"
+#include "models/graph_ops.hpp"
+
+namespace bsms {
+namespace {
+
+GraphModelOptions resolved(GraphModelOptions o) {
+  if (o.input_size <= 0 || o.output_size <= 0 || o.latent <= 0) {
+    throw InputError("graph model: input_size, output_size and latent must be positive (got " +
+                     std::to_string(o.input_size) + ", " + std::to_string(o.output_size) + ", " +
+                     std::to_string(o.latent) + ")");
+  }
+  if (o.position_dims.empty()) throw InputError("graph model: no position fields (position_dims)");
+  if (o.edge_set_fields.empty()) {
+    std::vector<int64_t> all(o.position_dims.size());
+    std::iota(all.begin(), all.end(), 0);
+    o.edge_set_fields = {all};
+  }
+  for (const auto& fields : o.edge_set_fields) {
+    for (int64_t f : fields) {
+      if (f < 0 || f >= static_cast<int64_t>(o.position_dims.size())) {
+        throw InputError("graph model: edge set uses position field " + std::to_string(f) +
+                         ", only " + std::to_string(o.position_dims.size()) + " exist");
+      }
+    }
+  }
+  if (o.num_levels < 1) throw InputError("graph model: num_levels must be >= 1");
+  if (o.message_passing_steps < 1) {
+    throw InputError("graph model: message_passing_steps must be >= 1");
+  }
+  return o;
+}
+
+}  // namespace
+
+GraphModel::GraphModel(GraphModelOptions options) : options_(resolved(std::move(options))) {}
+
+int64_t GraphModel::edge_feature_size(size_t set) const {
+  int64_t size = 0;
+  for (int64_t f : options_.edge_set_fields[set]) size += options_.position_dims[f] + 1;
+  return size;
+}
+
+EdgeIndex GraphModel::edge_set(const GraphHierarchy& graph, int level, size_t set) {
+  const auto& sets = graph.edge_sets[level];
+  return set < sets.size() ? sets[set] : EdgeIndex::empty(graph.num_nodes(level));
+}
+
+torch::Tensor GraphModel::run_mlp(Mlp& mlp, const torch::Tensor& x) const {
+  return mode_ == EdgeMlpMode::kConcat ? mlp.forward_reference(x) : mlp.forward(x);
+}
+
+void GraphModel::check_inputs(const torch::Tensor& nodes,
+                              const std::vector<torch::Tensor>& positions,
+                              const GraphHierarchy& graph) const {
+  if (graph.num_levels() == 0) throw InputError("graph model: empty graph hierarchy");
+  const int64_t n = graph.num_nodes(0);
+  if (nodes.dim() != 2 || nodes.size(0) != n || nodes.size(1) != options_.input_size) {
+    throw InputError("graph model: node inputs have shape " + std::string(c10::str(nodes.sizes())) +
+                     ", expected [" + std::to_string(n) + ", " +
+                     std::to_string(options_.input_size) + "]");
+  }
+  if (positions.size() != options_.position_dims.size()) {
+    throw InputError("graph model: " + std::to_string(positions.size()) +
+                     " position fields given, expected " +
+                     std::to_string(options_.position_dims.size()));
+  }
+  for (size_t f = 0; f < positions.size(); ++f) {
+    if (positions[f].dim() != 2 || positions[f].size(0) != n ||
+        positions[f].size(1) != options_.position_dims[f]) {
+      throw InputError("graph model: position field " + std::to_string(f) + " has shape " +
+                       std::string(c10::str(positions[f].sizes())) + ", expected [" +
+                       std::to_string(n) + ", " + std::to_string(options_.position_dims[f]) + "]");
+    }
+  }
+  for (const auto& sets : graph.edge_sets) {
+    if (sets.size() > num_edge_sets()) {
+      throw InputError("graph model: graph has " + std::to_string(sets.size()) +
+                       " edge sets, the model was built for " + std::to_string(num_edge_sets()));
+    }
+  }
+}
+
+BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
+  const int64_t latent = options_.latent;
+  std::vector<int64_t> feature_sizes;
+  for (size_t s = 0; s < num_edge_sets(); ++s) feature_sizes.push_back(edge_feature_size(s));
+  encoder_ =
+      register_module("encoder", std::make_shared<Mlp>(options_.input_size, latent, latent, true));
+  for (int k = 0; k + 1 < options_.num_levels; ++k) {
+    down_.push_back(register_module("down_" + std::to_string(k),
+                                    std::make_shared<MessagePassing>(latent, feature_sizes)));
+    up_.push_back(register_module("up_" + std::to_string(k),
+                                  std::make_shared<MessagePassing>(latent, feature_sizes)));
+  }
+  bottom_ = register_module("bottom", std::make_shared<MessagePassing>(latent, feature_sizes));
+  decoder_ = register_module("decoder",
+                             std::make_shared<Mlp>(latent, latent, options_.output_size, false));
+}
+
+torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
+                               const std::vector<torch::Tensor>& positions,
+                               const GraphHierarchy& graph) {
+  check_inputs(nodes, positions, graph);
+  const int levels = options_.num_levels;
+  if (graph.num_levels() != levels) {
+    throw InputError("BSMS-GNN: graph has " + std::to_string(graph.num_levels()) +
+                     " levels, the model was built for " + std::to_string(levels));
+  }
+  const size_t num_sets = num_edge_sets();
+  // Edge indices and features of one level, for the current level's positions.
+  auto level_inputs = [&](int k, const std::vector<torch::Tensor>& pos, std::vector<EdgeIndex>& idx,
+                          std::vector<torch::Tensor>& feats) {
+    idx.clear();
+    feats.clear();
+    for (size_t s = 0; s < num_sets; ++s) {
+      idx.push_back(edge_set(graph, k, s));
+      feats.push_back(edge_features(pos, options_.edge_set_fields[s], idx.back()));
+    }
+  };
+  std::vector<std::vector<torch::Tensor>> level_pos(levels);
+  level_pos[0] = positions;
+  {
+    torch::NoGradGuard no_grad;
+    for (int k = 0; k + 1 < levels; ++k) {
+      for (const auto& p : level_pos[k]) {
+        level_pos[k + 1].push_back(transfer_down(p.contiguous(), graph.transitions[k]));
+      }
+    }
+  }
+  std::vector<std::vector<EdgeIndex>> idx(levels);
+  std::vector<std::vector<torch::Tensor>> feats(levels);
+  for (int k = 0; k < levels; ++k) level_inputs(k, level_pos[k], idx[k], feats[k]);
+
+  auto v = run_mlp(*encoder_, nodes);
+  std::vector<torch::Tensor> skips;
+  for (int k = 0; k + 1 < levels; ++k) {
+    v = down_[k]->forward(v, feats[k], idx[k], mode_);
+    skips.push_back(v);
+    v = transfer_down(v, graph.transitions[k]);
+  }
+  v = bottom_->forward(v, feats[levels - 1], idx[levels - 1], mode_);
+  for (int k = levels - 2; k >= 0; --k) {
+    v = transfer_up(v, graph.transitions[k]);
+    v = up_[k]->forward(v, feats[k], idx[k], mode_) + skips[k];
+  }
+  return run_mlp(*decoder_, v);
+}
+
+EdgeLatentBlock::EdgeLatentBlock(int64_t latent, size_t num_sets) {
+  for (size_t s = 0; s < num_sets; ++s) {
+    edge_mlps_.push_back(register_module("edge_mlp_" + std::to_string(s),
+                                         std::make_shared<Mlp>(3 * latent, latent, latent, true)));
+  }
+  node_mlp_ = register_module(
+      "node_mlp",
+      std::make_shared<Mlp>((1 + static_cast<int64_t>(num_sets)) * latent, latent, latent, true));
+}
+
+torch::Tensor EdgeLatentBlock::forward(const torch::Tensor& v, std::vector<torch::Tensor>& latents,
+                                       const std::vector<const EdgeIndex*>& edges,
+                                       EdgeMlpMode mode) {
+  const int64_t latent = v.size(1);
+  std::vector<torch::Tensor> node_in{v};
+  for (size_t s = 0; s < edge_mlps_.size(); ++s) {
+    Mlp& mlp = *edge_mlps_[s];
+    const EdgeIndex& index = *edges[s];
+    torch::Tensor update, summed;
+    if (mode == EdgeMlpMode::kConcat) {
+      update = mlp.forward_reference(torch::cat(
+          {latents[s], v.index_select(0, index.senders), v.index_select(0, index.receivers)}, 1));
+      summed = torch::zeros_like(v).index_add_(0, index.receivers, update);
+    } else {
+      const auto& w = mlp.first()->weight;  // [L, 3L]: edge, sender, receiver columns
+      auto base = linear(latents[s], w.narrow(1, 0, latent), {}, false);
+      auto a = linear(v, w.narrow(1, latent, latent), {}, false);
+      auto b = linear(v, w.narrow(1, 2 * latent, latent), {}, false);
+      auto none = torch::empty({index.num_edges(), 0});
+      auto hidden = mlp.tail(
+          edge_first_layer(base, none, torch::empty({latent, 0}), mlp.first()->bias, a, b, index));
+      update = at::layer_norm(hidden, {latent});
+      summed = segment_sum(update, index);
+    }
+    node_in.push_back(summed);
+    latents[s] = latents[s] + update;
+  }
+  auto update = mode == EdgeMlpMode::kConcat ? node_mlp_->forward_reference(torch::cat(node_in, 1))
+                                             : node_mlp_->forward(torch::cat(node_in, 1));
+  return v + update;
+}
+
+MeshGraphNets::MeshGraphNets(GraphModelOptions options) : GraphModel(std::move(options)) {
+  const int64_t latent = options_.latent;
+  node_encoder_ = register_module("node_encoder",
+                                  std::make_shared<Mlp>(options_.input_size, latent, latent, true));
+  for (size_t s = 0; s < num_edge_sets(); ++s) {
+    edge_encoders_.push_back(
+        register_module("edge_encoder_" + std::to_string(s),
+                        std::make_shared<Mlp>(edge_feature_size(s), latent, latent, true)));
+  }
+  for (int k = 0; k < options_.message_passing_steps; ++k) {
+    blocks_.push_back(register_module("block_" + std::to_string(k),
+                                      std::make_shared<EdgeLatentBlock>(latent, num_edge_sets())));
+  }
+  decoder_ = register_module("decoder",
+                             std::make_shared<Mlp>(latent, latent, options_.output_size, false));
+}
+
+torch::Tensor MeshGraphNets::forward(const torch::Tensor& nodes,
+                                     const std::vector<torch::Tensor>& positions,
+                                     const GraphHierarchy& graph) {
+  check_inputs(nodes, positions, graph);
+  std::vector<EdgeIndex> sets;
+  std::vector<const EdgeIndex*> edges;
+  std::vector<torch::Tensor> latents;
+  for (size_t s = 0; s < num_edge_sets(); ++s) sets.push_back(edge_set(graph, 0, s));
+  for (const auto& set : sets) edges.push_back(&set);
+  for (size_t s = 0; s < num_edge_sets(); ++s) {
+    latents.push_back(run_mlp(*edge_encoders_[s],
+                              edge_features(positions, options_.edge_set_fields[s], *edges[s])));
+  }
+  auto v = run_mlp(*node_encoder_, nodes);
+  for (auto& block : blocks_) v = block->forward(v, latents, edges, mode_);
+  return run_mlp(*decoder_, v);
+}
+
+}  // namespace bsms

@@ -1,0 +1,102 @@
+// The two graph networks: BSMS-GNN (multilevel U-Net, thesis §4.3) and MeshGraphNets (§4.4.2.2).
+#pragma once
+
+#include <torch/nn/module.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "models/graph_tensors.hpp"
+#include "models/layers.hpp"
+
+namespace bsms {
+
+struct GraphModelOptions {
+  int64_t input_size = 0;   // node input channels
+  int64_t output_size = 0;  // node output channels
+  int64_t latent = 128;
+  // Sizes of the position fields passed to forward, e.g. {2} (mesh X) or {2, 2} (mesh X, world x).
+  std::vector<int64_t> position_dims;
+  // Per edge set, the position fields its edge features use: set 0 = mesh edges (e.g. {0, 1}),
+  // set 1 = contact edges (e.g. {1}). Empty: one edge set using every position field.
+  std::vector<std::vector<int64_t>> edge_set_fields;
+  int num_levels = 1;              // BSMS: levels of the multilevel graph (>= 1)
+  int message_passing_steps = 15;  // MeshGraphNets
+};
+
+// Common interface: node inputs (normalised) to node outputs (normalised) on a graph hierarchy.
+class GraphModel : public torch::nn::Module {
+ public:
+  explicit GraphModel(GraphModelOptions options);
+  // nodes [N, input_size] float32; positions[f] [N, position_dims[f]] float32 (no gradient is
+  // taken through them); graph: N = graph.num_nodes(0), e.g. a merge_hierarchies() batch.
+  // Edge set s of each level is graph.edge_sets[level][s]; sets the model has but the graph lacks
+  // count as empty (e.g. a frame without contacts). Returns [N, output_size].
+  virtual torch::Tensor forward(const torch::Tensor& nodes,
+                                const std::vector<torch::Tensor>& positions,
+                                const GraphHierarchy& graph) = 0;
+  const GraphModelOptions& options() const { return options_; }
+  // kProjection (default): fused per-node projection kernels. kConcat: every MLP evaluated with
+  // plain LibTorch ops and concatenated edge inputs, as the reference implementation does (same
+  // parameters; for tests and benchmarks).
+  void set_edge_mlp_mode(EdgeMlpMode mode) { mode_ = mode; }
+
+ protected:
+  int64_t edge_feature_size(size_t set) const;
+  size_t num_edge_sets() const { return options_.edge_set_fields.size(); }
+  // Edge index `set` of `level`, or an empty set when the graph has fewer sets.
+  static EdgeIndex edge_set(const GraphHierarchy& graph, int level, size_t set);
+  // mlp.forward, or mlp.forward_reference in EdgeMlpMode::kConcat.
+  torch::Tensor run_mlp(Mlp& mlp, const torch::Tensor& x) const;
+  void check_inputs(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
+                    const GraphHierarchy& graph) const;
+
+  GraphModelOptions options_;
+  EdgeMlpMode mode_ = EdgeMlpMode::kProjection;
+};
+
+// BSMS-GNN: encoder at level 0, one message passing per level on the way down, one at the bottom,
+// one per level on the way up with skip additions, decoder. Transitions are non-parametric
+// (models/graph_ops.hpp); coarse positions are the down-transferred finer positions.
+class BsmsGnn : public GraphModel {
+ public:
+  explicit BsmsGnn(GraphModelOptions options);
+  torch::Tensor forward(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
+                        const GraphHierarchy& graph) override;
+
+ private:
+  std::shared_ptr<Mlp> encoder_, decoder_;
+  std::vector<std::shared_ptr<MessagePassing>> down_, up_;
+  std::shared_ptr<MessagePassing> bottom_;
+};
+
+// One MeshGraphNets step: edge latents e_s += f_s([e_s, v_i, v_j]); v += f_V([v, Σ Δe¹, …]).
+class EdgeLatentBlock : public torch::nn::Module {
+ public:
+  EdgeLatentBlock(int64_t latent, size_t num_sets);
+  // v [N, L]; latents[s] [E_s, L] updated in place of the vector; returns the new v [N, L].
+  torch::Tensor forward(const torch::Tensor& v, std::vector<torch::Tensor>& latents,
+                        const std::vector<const EdgeIndex*>& edges, EdgeMlpMode mode);
+
+ private:
+  std::vector<std::shared_ptr<Mlp>> edge_mlps_;
+  std::shared_ptr<Mlp> node_mlp_;
+};
+
+// MeshGraphNets on level 0 of the graph: node and edge encoders, message_passing_steps blocks
+// carrying edge latents with residuals, decoder.
+class MeshGraphNets : public GraphModel {
+ public:
+  explicit MeshGraphNets(GraphModelOptions options);
+  torch::Tensor forward(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
+                        const GraphHierarchy& graph) override;
+
+ private:
+  std::shared_ptr<Mlp> node_encoder_, decoder_;
+  std::vector<std::shared_ptr<Mlp>> edge_encoders_;
+  std::vector<std::shared_ptr<EdgeLatentBlock>> blocks_;
+};
+
+}  // namespace bsms

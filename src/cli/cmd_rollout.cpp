@@ -1,0 +1,29 @@
+// bsms rollout RUN [--split test] [--data DIR] [--trajectories K] [--steps S] [--threads T]
+#include "cli/command.hpp"
+#include "pipeline/rollout.hpp"
+
+namespace {
+
+BSMS_COMMAND(
+    "rollout", "roll a trained model out over a split; writes RUN/rollout/metrics.json",
+    [](CLI::App& sub) {
+      auto r = std::make_shared<bsms::RolloutRequest>();
+      sub.add_option("run", r->run, "run folder written by bsms train")->required();
+      sub.add_option("--split", r->split, "dataset split")->default_val("test");
+      sub.add_option("--data", r->data,
+                     "dataset folder (default: the run's training data; use another for "
+                     "zero-shot tests)");
+      sub.add_option("--trajectories", r->max_trajectories, "roll out at most K (0 = all)")
+          ->check(CLI::NonNegativeNumber);
+      sub.add_option("--steps", r->max_steps, "at most S predicted steps each (0 = all)")
+          ->check(CLI::NonNegativeNumber);
+      bsms::cli::add_threads_option(sub, r->threads);
+      sub.footer(
+          "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"
+          "format), one XDMF per trajectory for ParaView, and RUN/rollout/metrics.json:\n"
+          "RMSE over the first 1, 50 and all steps per field, inference ms per step, the\n"
+          "solver's ms per frame and the speed-up, training ms per step, peak memory.");
+      sub.callback([r] { bsms::rollout(*r); });
+    });
+
+}  // namespace

@@ -1,0 +1,33 @@
+// bsms train CONFIG.json [--set key=value] [--out RUN] [--resume] [--threads T]
+#include "cli/command.hpp"
+#include "pipeline/trainer.hpp"
+
+namespace {
+
+struct TrainArgs {
+  bsms::TrainRequest request;
+};
+
+BSMS_COMMAND(
+    "train", "train BSMS-GNN or MeshGraphNets on a dataset (configs/train/*.json)",
+    [](CLI::App& sub) {
+      auto args = std::make_shared<TrainArgs>();
+      auto& r = args->request;
+      sub.add_option("config", r.config_path, "training config JSON")->required();
+      bsms::cli::add_set_option(sub, r.overrides);
+      sub.add_option("--out", r.out, "run folder (default runs/<config name>)");
+      sub.add_flag("--resume", r.resume,
+                   "continue the run in --out from its latest checkpoint, exactly");
+      sub.add_option("--until", r.until,
+                     "stop at this step with a checkpoint (continue later with --resume)")
+          ->check(CLI::NonNegativeNumber);
+      bsms::cli::add_threads_option(sub, r.threads);
+      sub.footer(
+          "Writes RUN/config.json (resolved), RUN/checkpoints/latest.pt (model, normalizers,\n"
+          "optimizer, step; atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss, lr)\n"
+          "and RUN/train_stats.json. Multilevel graphs are built on first use and cached in\n"
+          "DATA/multilevel/ (or RUN/multilevel/ when the data folder is read-only).");
+      sub.callback([args] { bsms::train(args->request); });
+    });
+
+}  // namespace

@@ -1,0 +1,50 @@
+// Multilevel graphs per mesh topology: built on first use with the bi-stride builder, cached on
+// disk (beside the dataset when writable, else in the run folder) and as model tensors in memory.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+
+#include "data/dataset/dataset.hpp"
+#include "models/graph_tensors.hpp"
+#include "preprocess/multilevel_graph.hpp"
+
+namespace bsms {
+
+struct MeshGraphs {
+  std::string key;              // hash of the mesh topology (cells and node count)
+  MultilevelGraph multilevel;   // exactly `levels` levels
+  GraphHierarchy hierarchy;     // tensors of `multilevel`, mesh edges only
+  RowMatrixXd mesh_pos;         // [N, dim] reference positions
+  double mean_edge_length = 0;  // over mesh edges, in mesh_pos units
+};
+
+// 64-bit FNV-1a hash of a mesh's topology, as 16 hex digits.
+std::string topology_key(const TrajectoryMesh& mesh);
+
+class GraphStore {
+ public:
+  // `levels` >= 1 is the exact level count of every graph; `cache_dirs` are tried in order.
+  GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs);
+  const MeshGraphs& get(const TrajectoryMesh& mesh);
+  int levels() const { return levels_; }
+
+ private:
+  Seeding seeding_;
+  int levels_;
+  std::vector<std::string> cache_dirs_;
+  std::map<std::string, std::unique_ptr<MeshGraphs>> graphs_;
+};
+
+// File name of a cached multilevel graph: "<seeding>-L<levels>-<topology key>.h5". Written by
+// `bsms preprocess --data` and by training on first use; read by training and rollout.
+std::string multilevel_cache_name(Seeding seeding, int levels, const std::string& key);
+
+// The level count `--levels auto` chooses for a mesh (preprocess rule).
+int auto_levels(const TrajectoryMesh& mesh, Seeding seeding);
+
+// A Mesh (core) from a dataset mesh, validated.
+Mesh to_mesh(const TrajectoryMesh& mesh);
+
+}  // namespace bsms

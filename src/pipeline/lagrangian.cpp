@@ -1,0 +1,131 @@
+#include "pipeline/lagrangian.hpp"
+
+#include <torch/torch.h>
+
+#include "core/radius_search.hpp"
+#include "preprocess/contact_enhancement.hpp"
+
+namespace bsms {
+
+Json to_json(const LagrangianSpec& s) {
+  return Json{{"dim", s.dim},
+              {"num_node_types", s.num_node_types},
+              {"position_scale", s.position_scale},
+              {"contact_radius", s.contact_radius},
+              {"public_layout", s.public_layout},
+              {"multilevel", s.multilevel}};
+}
+
+LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file) {
+  LagrangianSpec s;
+  JsonObjectReader r(json, {file, "features_resolved"});
+  s.dim = r.get<int>("dim");
+  s.num_node_types = r.get<int>("num_node_types");
+  s.position_scale = r.get<double>("position_scale");
+  s.contact_radius = r.get<double>("contact_radius");
+  s.public_layout = r.get<bool>("public_layout");
+  s.multilevel = r.get<bool>("multilevel");
+  r.finish();
+  require(s.dim >= 1 && s.dim <= 3, r.context("dim"), "1, 2 or 3");
+  require(s.position_scale > 0, r.context("position_scale"), "> 0");
+  return s;
+}
+
+bool is_predicted_node(int32_t node_type, bool public_layout) {
+  if (public_layout) return node_type == 0;
+  return node_type == static_cast<int32_t>(NodeType::kNormal) ||
+         node_type == static_cast<int32_t>(NodeType::kSlip);
+}
+
+namespace {
+
+torch::Tensor edges_to_tensor(const EdgeList& edges, bool drop_loops) {
+  std::vector<int64_t> flat;
+  flat.reserve(edges.data.size());
+  for (int64_t e = 0; e < edges.size(); ++e) {
+    if (drop_loops && edges.sender(e) == edges.receiver(e)) continue;
+    flat.push_back(edges.sender(e));
+    flat.push_back(edges.receiver(e));
+  }
+  const int64_t count = static_cast<int64_t>(flat.size() / 2);
+  return torch::from_blob(flat.data(), {count, 2}, torch::kInt64).clone();
+}
+
+}  // namespace
+
+Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
+                                    const std::vector<torch::Tensor>& noise) const {
+  Batch b;
+  std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs;
+  std::vector<GraphHierarchy> graphs;
+  graphs.reserve(states.size());
+  const double inv_scale = 1.0 / spec_.position_scale;
+  for (size_t g = 0; g < states.size(); ++g) {
+    const FrameState& s = states[g];
+    const auto& mesh = *s.mesh;
+    const int64_t n = mesh.num_nodes();
+    auto types = torch::from_blob(const_cast<int32_t*>(mesh.node_type.data()), {n}, torch::kInt32)
+                     .to(torch::kInt64);
+    std::vector<uint8_t> predicted(n);
+    for (int64_t i = 0; i < n; ++i)
+      predicted[i] = is_predicted_node(mesh.node_type[i], spec_.public_layout);
+    auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
+    torch::Tensor cur = s.cur;
+    if (g < noise.size() && noise[g].defined())
+      cur = cur + noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
+    auto velocity = cur - s.prev;
+    auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
+                       .to(torch::kFloat32);
+    inputs.push_back(torch::cat({velocity, one_hot}, 1));
+    mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, spec_.dim},
+                                        torch::kFloat32) *
+                       inv_scale);
+    world_pos.push_back(cur * inv_scale);
+    masks.push_back(mask);
+    curs.push_back(cur);
+    prevs.push_back(s.prev);
+
+    if (spec_.has_contact()) {
+      const auto x = cur.to(torch::kFloat64).contiguous();
+      RowMatrixXd points = Eigen::Map<const RowMatrixXd>(x.data_ptr<double>(), n, spec_.dim);
+      const MultilevelGraph& ml = s.graphs->multilevel;
+      const EdgeList contact = radius_pairs(points, spec_.contact_radius, &ml.levels[0].graph);
+      b.contact_edges += contact.size();
+      std::vector<std::vector<torch::Tensor>> extra;
+      if (spec_.multilevel && ml.num_levels() > 1) {
+        const auto levels = enhance_contact_edges_all_levels(ml, contact);
+        for (const auto& level : levels) extra.push_back({edges_to_tensor(level, true)});
+      } else {
+        extra.push_back({edges_to_tensor(contact, true)});
+      }
+      graphs.push_back(s.graphs->hierarchy.with_edge_sets(extra));
+    } else {
+      graphs.push_back(s.graphs->hierarchy);
+    }
+  }
+  b.inputs = torch::cat(inputs, 0);
+  b.positions = {torch::cat(mesh_pos, 0), torch::cat(world_pos, 0)};
+  b.mask = torch::cat(masks, 0);
+  b.cur = torch::cat(curs, 0);
+  b.prev = torch::cat(prevs, 0);
+  if (graphs.size() == 1) {
+    b.graph = std::move(graphs[0]);
+  } else {
+    std::vector<const GraphHierarchy*> pointers;
+    for (const auto& g : graphs) pointers.push_back(&g);
+    b.graph = merge_hierarchies(pointers);
+  }
+  return b;
+}
+
+torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor& next) const {
+  return next - 2 * batch.cur + batch.prev;
+}
+
+torch::Tensor LagrangianAdapter::integrate(const Batch& batch, const torch::Tensor& accel,
+                                           const torch::Tensor& prescribed) const {
+  auto predicted = 2 * batch.cur - batch.prev + accel;
+  return torch::where(batch.mask.unsqueeze(1), predicted, prescribed);
+}
+
+}  // namespace bsms

@@ -1,0 +1,71 @@
+// The Lagrangian adapter (STYLE.md 8): turns dataset frames into model inputs and a prediction
+// into the next state. Inputs per node: velocity x_t - x_{t-1} and a one-hot node type; positions:
+// mesh X and world x (both divided by `position_scale`); edge sets: mesh edges (X and x offsets)
+// and, when the scene has contact, contact edges (x offsets) carried to every level by A·Aᶜ·A.
+// Output: the acceleration x_{t+1} - 2 x_t + x_{t-1} (m per frame²).
+#pragma once
+
+#include <torch/types.h>
+
+#include <vector>
+
+#include "core/config.hpp"
+#include "pipeline/graph_store.hpp"
+
+namespace bsms {
+
+struct LagrangianSpec {
+  int dim = 2;
+  int num_node_types = 4;
+  double position_scale = 1.0;  // m; positions are divided by it (mean mesh edge length)
+  double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
+  bool public_layout = false;   // node-type codes of public MeshGraphNets data
+  bool multilevel = true;       // false: level 0 only (MeshGraphNets)
+
+  int input_size() const { return dim + num_node_types; }
+  int output_size() const { return dim; }
+  bool has_contact() const { return contact_radius > 0; }
+};
+Json to_json(const LagrangianSpec& spec);
+LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file);
+
+// Nodes whose next position the model predicts (others follow their prescribed path).
+bool is_predicted_node(int32_t node_type, bool public_layout);
+
+// One graph's state at frame t.
+struct FrameState {
+  const MeshGraphs* graphs = nullptr;
+  const TrajectoryMesh* mesh = nullptr;
+  torch::Tensor prev;  // [N, dim] float32 world positions at t-1 (m)
+  torch::Tensor cur;   // [N, dim] float32 world positions at t (m)
+};
+
+// A block-diagonal batch of states, ready for the model.
+struct Batch {
+  torch::Tensor inputs;                  // [N, input_size] raw (unnormalised) node features
+  std::vector<torch::Tensor> positions;  // {X, x} / position_scale, [N, dim] each
+  torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
+  torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
+  GraphHierarchy graph;
+  int64_t contact_edges = 0;  // level-0 contact edges found
+};
+
+class LagrangianAdapter {
+ public:
+  explicit LagrangianAdapter(LagrangianSpec spec) : spec_(spec) {}
+  const LagrangianSpec& spec() const { return spec_; }
+
+  // `noise[g]` (optional, [N_g, dim]) is added to graph g's current positions on predicted nodes.
+  Batch make_batch(const std::vector<FrameState>& states,
+                   const std::vector<torch::Tensor>& noise = {}) const;
+  // Target acceleration for the batch from next positions [N, dim] (concatenated like the batch).
+  torch::Tensor target(const Batch& batch, const torch::Tensor& next) const;
+  // x_{t+1} = 2 x_t - x_{t-1} + a on predicted nodes, `prescribed` [N, dim] elsewhere.
+  torch::Tensor integrate(const Batch& batch, const torch::Tensor& accel,
+                          const torch::Tensor& prescribed) const;
+
+ private:
+  LagrangianSpec spec_;
+};
+
+}  // namespace bsms

@@ -1,0 +1,249 @@
+#include "pipeline/report.hpp"
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+
+#include "core/config.hpp"
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+#include "data/dataset/dataset.hpp"
+#include "pipeline/run_files.hpp"
+
+namespace bsms {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunData {
+  std::string dir, label;
+  Json metrics, config;
+};
+
+std::string fmt(const Json& v, int precision = 3, bool scientific = false) {
+  if (v.is_null() || !v.is_number()) return "–";
+  std::ostringstream s;
+  if (scientific)
+    s << std::scientific;
+  else
+    s << std::fixed;
+  s << std::setprecision(precision) << v.get<double>();
+  return s.str();
+}
+
+const Json& field(const Json& m, const char* key, const char* sub) {
+  static const Json null;
+  if (!m.contains(key) || !m[key].is_object() || !m[key].contains(sub)) return null;
+  return m[key][sub];
+}
+
+void write_text(const fs::path& path, const std::string& text) {
+  AtomicOutput out(path.string());
+  {
+    std::ofstream f(out.temp_path());
+    f << text;
+    if (!f) throw IoError(path.string() + ": cannot write");
+  }
+  out.commit();
+}
+
+// Runs gnuplot on a script file; an error names the script.
+void gnuplot(const fs::path& script) {
+  const std::string cmd = "gnuplot " + script.string() + " 2>" + script.string() + ".log";
+  if (std::system(cmd.c_str()) != 0)
+    throw IoError(script.string() + ": gnuplot failed (see " + script.string() + ".log)");
+}
+
+std::string quoted(const std::string& s) {
+  return "'" + s + "'";
+}
+
+// Mesh edges of a frame as gnuplot segments ("x y" pairs separated by blank lines).
+void write_edges(std::ofstream& f, const TrajectoryMesh& mesh, const std::vector<float>& x,
+                 int dim) {
+  const int k = mesh.cell_size;
+  for (int64_t c = 0; c < mesh.num_cells(); ++c)
+    for (int a = 0; a < k; ++a)
+      for (int b = a + 1; b < k; ++b) {
+        const int32_t i = mesh.cells[c * k + a], j = mesh.cells[c * k + b];
+        f << x[i * dim] << ' ' << x[i * dim + 1] << '\n'
+          << x[j * dim] << ' ' << x[j * dim + 1] << "\n\n";
+      }
+}
+
+}  // namespace
+
+std::string write_report(const ReportRequest& request) {
+  if (request.runs.empty()) throw InputError("report: give at least one run folder");
+  std::vector<RunData> runs;
+  for (const auto& dir : request.runs) {
+    const fs::path metrics = fs::path(dir) / "rollout" / "metrics.json";
+    if (!fs::exists(metrics))
+      throw InputError(dir + ": no rollout/metrics.json (run bsms rollout " + dir + " first)");
+    RunData r;
+    r.dir = dir;
+    r.metrics = load_json_file(metrics.string());
+    const fs::path config = fs::path(dir) / "config.json";
+    r.config = fs::exists(config) ? load_json_file(config.string()) : Json::object();
+    r.label = fs::path(dir).filename().string() + " (" + r.metrics.value("model", "?") + ")";
+    runs.push_back(std::move(r));
+  }
+  const fs::path out = request.out;
+  const fs::path plots = out / "plots";
+  std::error_code ec;
+  fs::create_directories(plots, ec);
+  if (ec)
+    throw InputError(out.string() + ": cannot create the report folder (" + ec.message() + ")");
+
+  // --- data files for the plots
+  for (size_t r = 0; r < runs.size(); ++r) {
+    std::ofstream curve(plots / ("rmse_" + std::to_string(r) + ".dat"));
+    const Json& steps = runs[r].metrics["rmse_per_step"]["world_pos"];
+    for (size_t s = 0; s < steps.size(); ++s)
+      curve << s + 1 << ' ' << steps[s].get<double>() << '\n';
+    std::ofstream loss(plots / ("loss_" + std::to_string(r) + ".dat"));
+    std::ifstream log(fs::path(runs[r].dir) / "train_log.csv");
+    std::string line;
+    std::getline(log, line);
+    while (std::getline(log, line)) {
+      std::stringstream cells(line);
+      std::string step, wall, value, valid;
+      std::getline(cells, step, ',');
+      std::getline(cells, wall, ',');
+      std::getline(cells, value, ',');
+      std::getline(cells, valid, ',');
+      loss << wall << ' ' << value << ' ' << (valid.empty() ? "NaN" : valid) << '\n';
+    }
+  }
+  double solver_ms = -1;
+  {
+    std::ofstream speed(plots / "speed.dat");
+    for (size_t r = 0; r < runs.size(); ++r) {
+      const Json& m = runs[r].metrics;
+      speed << '"' << runs[r].label << "\" " << fmt(m["infer_ms_per_step"], 6) << ' '
+            << fmt(field(m, "rmse_all", "world_pos"), 8) << '\n';
+      if (m["solver_ms_per_frame"].is_number()) solver_ms = m["solver_ms_per_frame"].get<double>();
+    }
+    // The solver is the reference: error 0 by definition.
+    if (solver_ms > 0) speed << "\"UMLS-MPM solver (ground truth)\" " << solver_ms << " 0\n";
+  }
+
+  // --- plots
+  std::vector<std::string> images;
+  {
+    std::ostringstream g;
+    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
+      << quoted((plots / "rmse_over_steps.png").string())
+      << "\nset title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
+         "'predicted step'"
+         "\nset ylabel 'RMSE (m)'\nset logscale y\nset key left top\nset grid\nplot ";
+    for (size_t r = 0; r < runs.size(); ++r)
+      g << (r ? ", " : "") << quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
+        << " using 1:2 with lines lw 2 title " << quoted(runs[r].label);
+    g << '\n';
+    write_text(plots / "rmse_over_steps.gp", g.str());
+    gnuplot(plots / "rmse_over_steps.gp");
+    images.push_back("rmse_over_steps.png");
+  }
+  {
+    std::ostringstream g;
+    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
+      << quoted((plots / "speed_vs_error.png").string())
+      << "\nset title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
+         "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
+         "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
+         "0.1, graph 0.05\n";
+    g << "plot " << quoted((plots / "speed.dat").string())
+      << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle\n";
+    write_text(plots / "speed_vs_error.gp", g.str());
+    gnuplot(plots / "speed_vs_error.gp");
+    images.push_back("speed_vs_error.png");
+  }
+  {
+    std::ostringstream g;
+    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
+      << quoted((plots / "loss_vs_wall.png").string())
+      << "\nset title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
+         "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
+    for (size_t r = 0; r < runs.size(); ++r) {
+      const std::string data = quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string());
+      g << (r ? ", " : "") << data << " using 1:2 with lines lc " << r + 1 << " title "
+        << quoted(runs[r].label + " train") << ", " << data << " using 1:3 with points pt 7 lc "
+        << r + 1 << " title " << quoted(runs[r].label + " valid");
+    }
+    g << '\n';
+    write_text(plots / "loss_vs_wall.gp", g.str());
+    gnuplot(plots / "loss_vs_wall.gp");
+    images.push_back("loss_vs_wall.png");
+  }
+  // Ground truth next to prediction: first trajectory of each run, three frames.
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const std::string split = runs[r].metrics.value("split", "test");
+    const fs::path h5 = fs::path(runs[r].dir) / "rollout" / (split + ".h5");
+    if (!fs::exists(h5)) continue;
+    const Dataset d(h5.string());
+    if (d.dim() < 2 || !d.has_field("target_world_pos")) continue;
+    const auto& mesh = d.mesh(0);
+    const int64_t frames = d.num_frames(0);
+    const std::vector<int64_t> shown = {0, frames / 2, frames - 1};
+    std::ostringstream g;
+    g << "set terminal pngcairo size 1500,560 font ',11' noenhanced\nset output "
+      << quoted((plots / ("rollout_" + std::to_string(r) + ".png")).string())
+      << "\nset multiplot layout 1,3 title "
+      << quoted("Ground truth (grey) and prediction (red): " + runs[r].label)
+      << "\nset size ratio -1\nunset key\n";
+    for (size_t k = 0; k < shown.size(); ++k) {
+      const std::string base = "frames_" + std::to_string(r) + "_" + std::to_string(k);
+      {
+        std::ofstream truth(plots / (base + "_truth.dat")), pred(plots / (base + "_pred.dat"));
+        write_edges(truth, mesh, d.read(0, "target_world_pos", shown[k]), d.dim());
+        write_edges(pred, mesh, d.read(0, "world_pos", shown[k]), d.dim());
+      }
+      g << "set title 'frame " << shown[k] << "'\nplot "
+        << quoted((plots / (base + "_truth.dat")).string()) << " with lines lc rgb '#999999' lw 2, "
+        << quoted((plots / (base + "_pred.dat")).string()) << " with lines lc rgb '#d62728' lw 1\n";
+    }
+    g << "unset multiplot\n";
+    const fs::path script = plots / ("rollout_" + std::to_string(r) + ".gp");
+    write_text(script, g.str());
+    gnuplot(script);
+    images.push_back("rollout_" + std::to_string(r) + ".png");
+  }
+
+  // --- report.md
+  std::ostringstream md;
+  md << "# " << request.title << "\n\n"
+     << "Per model, as in the BSMS-GNN paper's Tables 4.5–4.6. Times are medians on this machine; "
+        "RMSE is the root mean squared error of predicted world positions (m) against the UMLS-MPM "
+        "ground truth over the first 1, 50 and all predicted steps of the test split.\n\n"
+     << "| run | model | levels | train steps | train ms/step | infer ms/step | solver ms/frame | "
+        "speed-up | RMSE-1 | RMSE-50 | RMSE-all | peak RAM train (MB) | peak RAM infer (MB) | "
+        "nodes | threads |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& r : runs) {
+    const Json& m = r.metrics;
+    md << "| " << fs::path(r.dir).filename().string() << " | " << m.value("model", "?") << " | "
+       << m.value("levels", 0) << " | "
+       << (m.contains("train_steps") ? m["train_steps"].dump() : "–") << " | "
+       << fmt(m["train_ms_per_step"], 1) << " | " << fmt(m["infer_ms_per_step"], 2) << " | "
+       << fmt(m["solver_ms_per_frame"], 1) << " | " << fmt(m["speedup_vs_solver"], 1) << " | "
+       << fmt(field(m, "rmse_1", "world_pos"), 2, true) << " | "
+       << fmt(field(m, "rmse_50", "world_pos"), 2, true) << " | "
+       << fmt(field(m, "rmse_all", "world_pos"), 2, true) << " | " << fmt(m["peak_rss_mb_train"], 0)
+       << " | " << fmt(m["peak_rss_mb_infer"], 0) << " | " << fmt(m["num_nodes_mean"], 0) << " | "
+       << m.value("threads", 0) << " |\n";
+    if (m.contains("diverged") && !m["diverged"].empty())
+      md << "\n_" << r.label << " diverged (non-finite prediction): " << m["diverged"].dump()
+         << "_\n";
+  }
+  md << "\n";
+  for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";
+  const fs::path report = out / "report.md";
+  write_text(report, md.str());
+  return report.string();
+}
+
+}  // namespace bsms

@@ -1,0 +1,20 @@
+// `bsms report`: the paper-style table (thesis Tables 4.5-4.6) and PNG plots from any runs.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace bsms {
+
+struct ReportRequest {
+  std::vector<std::string> runs;  // run folders with rollout/metrics.json
+  std::string out;                // folder for report.md and plots/
+  std::string title = "bsms report";
+};
+
+// Writes OUT/report.md and OUT/plots/*.png (gnuplot): per-model table, rollout RMSE over steps,
+// speed against error (solver and models), training loss against wall time, ground truth next to
+// prediction for the first test trajectory. Returns the path of report.md.
+std::string write_report(const ReportRequest& request);
+
+}  // namespace bsms

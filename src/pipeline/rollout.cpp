@@ -1,0 +1,215 @@
+#include "pipeline/rollout.hpp"
+
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+
+#include "core/error.hpp"
+#include "core/runtime.hpp"
+#include "data/dataset/dataset.hpp"
+#include "data/dataset/xdmf.hpp"
+#include "models/graph_ops.hpp"
+#include "pipeline/lagrangian.hpp"
+#include "pipeline/run_files.hpp"
+#include "pipeline/simulator.hpp"
+#include "pipeline/trainer.hpp"
+
+namespace bsms {
+namespace fs = std::filesystem;
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+// Mean squared error per predicted step, per field, accumulated over trajectories.
+struct ErrorCurves {
+  std::vector<double> pos_sum, vel_sum;
+  std::vector<int64_t> count;
+  void add(size_t step, double pos_mse, double vel_mse) {
+    if (pos_sum.size() <= step) {
+      pos_sum.resize(step + 1, 0.0);
+      vel_sum.resize(step + 1, 0.0);
+      count.resize(step + 1, 0);
+    }
+    pos_sum[step] += pos_mse;
+    vel_sum[step] += vel_mse;
+    ++count[step];
+  }
+};
+
+Json rmse_over(const ErrorCurves& c, size_t steps) {
+  double pos = 0, vel = 0;
+  int64_t n = 0;
+  for (size_t s = 0; s < std::min(steps, c.count.size()); ++s) {
+    pos += c.pos_sum[s];
+    vel += c.vel_sum[s];
+    n += c.count[s];
+  }
+  if (n == 0) return Json(nullptr);
+  pos /= static_cast<double>(n);
+  vel /= static_cast<double>(n);
+  return Json{{"world_pos", std::sqrt(pos)},
+              {"velocity", std::sqrt(vel)},
+              {"total", std::sqrt(0.5 * (pos + vel))}};
+}
+
+}  // namespace
+
+Json rollout(const RolloutRequest& request) {
+  const std::string run = request.run;
+  const std::string config_file = run_config_path(run);
+  if (!fs::exists(config_file))
+    throw InputError(run + ": not a run folder (no config.json; train first with bsms train)");
+  const Json saved = load_json_file(config_file);
+  if (!saved.contains("config") || !saved.contains("features_resolved") ||
+      !saved.contains("levels"))
+    throw InputError(config_file + ": missing config, features_resolved or levels");
+  const TrainConfig config = parse_train_config(saved["config"], config_file);
+  const LagrangianSpec spec = lagrangian_spec_from_json(saved["features_resolved"], config_file);
+  const int levels = saved["levels"].get<int>();
+  const int threads = configure_threads(set_num_threads(request.threads));
+
+  auto simulator = std::make_shared<LearnedSimulator>(spec, config.model, levels);
+  load_checkpoint(run_checkpoint_path(run), *simulator, nullptr);
+  simulator->eval();
+
+  const std::string data_dir = request.data.empty() ? config.data : request.data;
+  const Dataset data = Dataset::open_split(data_dir, request.split);
+  if (data.dim() != spec.dim)
+    throw InputError(data.location() + ": dimension " + std::to_string(data.dim()) +
+                     " differs from the model's " + std::to_string(spec.dim));
+  if (!data.has_field("world_pos"))
+    throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
+  const int64_t count = request.max_trajectories > 0
+                            ? std::min(request.max_trajectories, data.num_trajectories())
+                            : data.num_trajectories();
+  std::error_code ec;
+  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
+                                         (fs::path(run) / "multilevel").string()};
+  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
+  GraphStore store(parse_seeding(config.model.seeding), levels, cache_dirs);
+  LagrangianAdapter adapter(spec);
+
+  const fs::path out_dir = fs::path(run) / "rollout";
+  fs::create_directories(out_dir, ec);
+  const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
+  DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
+
+  const double frame_dt = data.frame_dt() > 0 ? data.frame_dt() : 1.0;
+  ErrorCurves curves;
+  std::vector<double> infer_ms, solver_ms_per_frame;
+  double nodes_total = 0;
+  Json diverged = Json::array();
+  ProgressBar bar("rollout " + request.split, count);
+  torch::InferenceMode inference;
+  for (int64_t t = 0; t < count; ++t) {
+    const TrajectoryMesh& mesh = data.mesh(t);
+    const int64_t n = mesh.num_nodes();
+    nodes_total += static_cast<double>(n);
+    int64_t frames = data.num_frames(t);
+    if (request.max_steps > 0) frames = std::min(frames, request.max_steps + 2);
+    if (frames < 3)
+      throw InputError(data.location() + ": trajectory " + std::to_string(t) +
+                       " has fewer than 3 frames");
+    auto raw = data.read(t, "world_pos", 0, frames);
+    const auto truth = torch::from_blob(raw.data(), {frames, n, spec.dim}, torch::kFloat32).clone();
+    std::vector<torch::Tensor> pred = {truth[0], truth[1]};
+    const MeshGraphs& graphs = store.get(mesh);
+    for (int64_t f = 1; f + 1 < frames; ++f) {
+      Stopwatch clock;
+      FrameState state{&graphs, &mesh, pred[f - 1], pred[f]};
+      Batch batch = adapter.make_batch({state});
+      const auto accel = simulator->predict(batch);
+      auto next = adapter.integrate(batch, accel, truth[f + 1]);
+      infer_ms.push_back(clock.milliseconds());
+      if (!torch::isfinite(next).all().item<bool>()) {
+        diverged.push_back({{"trajectory", t}, {"frame", f + 1}});
+        break;
+      }
+      pred.push_back(next);
+      const auto pos_err = (next - truth[f + 1]).pow(2).mean().item<double>();
+      const auto vel_err =
+          ((next - pred[f]) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
+      curves.add(static_cast<size_t>(f - 1), pos_err, vel_err);
+    }
+    const double solver_s = data.solver_wall_s(t);
+    if (solver_s >= 0)
+      solver_ms_per_frame.push_back(1000.0 * solver_s /
+                                    static_cast<double>(data.num_frames(t) - 1));
+
+    Trajectory out;
+    out.mesh = mesh;
+    out.seed = data.seed(t);
+    out.parameters = data.parameters(t);
+    out.num_frames = static_cast<int64_t>(pred.size());
+    const auto stacked = torch::stack(pred).contiguous();
+    out.fields["world_pos"] =
+        std::vector<float>(stacked.data_ptr<float>(), stacked.data_ptr<float>() + stacked.numel());
+    const auto target = truth.slice(0, 0, out.num_frames).contiguous();
+    out.fields["target_world_pos"] =
+        std::vector<float>(target.data_ptr<float>(), target.data_ptr<float>() + target.numel());
+    writer.add(out);
+    if (!request.quiet) bar.update(t + 1);
+  }
+  writer.commit();
+  if (!request.quiet) bar.finish();
+  {
+    const Dataset written(out_h5);
+    for (int64_t t = 0; t < written.num_trajectories(); ++t) {
+      char name[64];
+      std::snprintf(name, sizeof name, "%s_%06lld.xdmf", request.split.c_str(),
+                    static_cast<long long>(t));
+      write_trajectory_xdmf(written, t, (out_dir / name).string());
+    }
+  }
+
+  Json metrics;
+  metrics["model"] = config.model.type;
+  metrics["split"] = request.split;
+  metrics["data"] = data.location();
+  metrics["num_trajectories"] = count;
+  metrics["rmse_1"] = rmse_over(curves, 1);
+  metrics["rmse_50"] = rmse_over(curves, 50);
+  metrics["rmse_all"] = rmse_over(curves, curves.count.size());
+  Json per_step = Json::array();
+  for (size_t s = 0; s < curves.count.size(); ++s)
+    per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));
+  metrics["rmse_per_step"] = {{"world_pos", per_step}};
+  metrics["infer_ms_per_step"] = median(infer_ms);
+  const double solver_ms = solver_ms_per_frame.empty() ? -1.0 : median(solver_ms_per_frame);
+  metrics["solver_ms_per_frame"] = solver_ms >= 0 ? Json(solver_ms) : Json(nullptr);
+  metrics["speedup_vs_solver"] =
+      solver_ms >= 0 && median(infer_ms) > 0 ? Json(solver_ms / median(infer_ms)) : Json(nullptr);
+  metrics["peak_rss_mb_infer"] = peak_rss_mb();
+  metrics["num_nodes_mean"] = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
+  metrics["threads"] = threads;
+  metrics["diverged"] = diverged;
+  metrics["levels"] = levels;
+  const std::string stats_file = run_stats_path(run);
+  if (fs::exists(stats_file)) {
+    const Json stats = load_json_file(stats_file);
+    metrics["train_ms_per_step"] = stats.value("train_ms_per_step", 0.0);
+    metrics["peak_rss_mb_train"] = stats.value("peak_rss_mb_train", 0.0);
+    metrics["train_steps"] = stats.value("steps", 0);
+  } else {
+    metrics["train_ms_per_step"] = nullptr;
+    metrics["peak_rss_mb_train"] = nullptr;
+  }
+  write_json_atomic((out_dir / "metrics.json").string(), metrics);
+  if (!request.quiet)
+    std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all(world_pos) "
+              << (metrics["rmse_all"].is_null() ? 0.0
+                                                : metrics["rmse_all"]["world_pos"].get<double>())
+              << ", " << metrics["infer_ms_per_step"].get<double>() << " ms/step -> "
+              << (out_dir / "metrics.json").string() << "\n";
+  return metrics;
+}
+
+}  // namespace bsms

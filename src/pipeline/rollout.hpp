@@ -1,0 +1,25 @@
+// `bsms rollout`: autoregressive prediction over whole trajectories, metrics.json and predicted
+// trajectories (HDF5 + XDMF) in RUN/rollout/.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "core/config.hpp"
+
+namespace bsms {
+
+struct RolloutRequest {
+  std::string run;
+  std::string split = "test";
+  std::string data;              // dataset folder; empty: the run's training data folder
+  int64_t max_trajectories = 0;  // 0: all
+  int64_t max_steps = 0;         // 0: whole trajectories
+  int threads = 0;
+  bool quiet = false;
+};
+
+// Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").
+Json rollout(const RolloutRequest& request);
+
+}  // namespace bsms

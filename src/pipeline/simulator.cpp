@@ -1,0 +1,121 @@
+#include "pipeline/simulator.hpp"
+
+#include <torch/torch.h>
+
+#include <filesystem>
+
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+
+namespace bsms {
+
+LearnedSimulator::LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& config,
+                                   int levels) {
+  GraphModelOptions o;
+  o.input_size = spec.input_size();
+  o.output_size = spec.output_size();
+  o.latent = config.latent;
+  o.position_dims = {spec.dim, spec.dim};                    // mesh X, world x
+  o.edge_set_fields = {{0, 1}};                              // mesh edges: both offsets
+  if (spec.has_contact()) o.edge_set_fields.push_back({1});  // contact edges: world offsets
+  o.num_levels = levels;
+  o.message_passing_steps = config.message_passing_steps;
+  if (config.type == "bsms") {
+    model_ = std::make_shared<BsmsGnn>(o);
+  } else {
+    model_ = std::make_shared<MeshGraphNets>(o);
+  }
+  register_module("model", model_);
+  input_norm_ =
+      register_module("input_normalizer", std::make_shared<Normalizer>(spec.input_size()));
+  output_norm_ =
+      register_module("output_normalizer", std::make_shared<Normalizer>(spec.output_size()));
+}
+
+int64_t LearnedSimulator::num_parameters() const {
+  int64_t total = 0;
+  for (const auto& p : parameters()) total += p.numel();
+  return total;
+}
+
+torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
+  return model_->forward(input_norm_->normalize(batch.inputs), batch.positions, batch.graph);
+}
+
+torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target,
+                                     bool accumulate) {
+  if (accumulate) {
+    torch::NoGradGuard no_grad;
+    input_norm_->accumulate(batch.inputs);
+    output_norm_->accumulate(target.index({batch.mask}));
+  }
+  const auto prediction = forward_normalized(batch);
+  const auto error = (prediction - output_norm_->normalize(target)).pow(2).sum(1);
+  return error.index({batch.mask}).mean();
+}
+
+torch::Tensor LearnedSimulator::predict(const Batch& batch) {
+  return output_norm_->inverse(forward_normalized(batch));
+}
+
+void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                     torch::optim::Optimizer& optimizer, int64_t step, double wall_s) {
+  AtomicOutput out(path);
+  try {
+    torch::serialize::OutputArchive archive;
+    simulator.save(archive);
+    torch::serialize::OutputArchive optimizer_archive;
+    optimizer.save(optimizer_archive);
+    archive.write("optimizer", optimizer_archive);
+    archive.write("step", torch::tensor({step}, torch::kInt64));
+    archive.write("wall_s", torch::tensor({wall_s}, torch::kFloat64));
+    archive.save_to(out.temp_path());
+  } catch (const c10::Error& e) {
+    throw IoError(path + ": cannot write checkpoint (" + std::string(e.what_without_backtrace()) +
+                  ")");
+  }
+  out.commit();
+}
+
+CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                               torch::optim::Optimizer* optimizer) {
+  if (!std::filesystem::exists(path)) throw InputError(path + ": checkpoint not found");
+  CheckpointInfo info;
+  // LibTorch's load replaces tensors whatever their shape: compare shapes ourselves.
+  std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
+  for (const auto& item : simulator.named_parameters())
+    expected.emplace_back(item.key(), item.value().sizes().vec());
+  for (const auto& item : simulator.named_buffers())
+    expected.emplace_back(item.key(), item.value().sizes().vec());
+  try {
+    torch::serialize::InputArchive archive;
+    archive.load_from(path);
+    simulator.load(archive);
+    if (optimizer) {
+      torch::serialize::InputArchive optimizer_archive;
+      archive.read("optimizer", optimizer_archive);
+      optimizer->load(optimizer_archive);
+    }
+    torch::Tensor step, wall;
+    archive.read("step", step);
+    archive.read("wall_s", wall);
+    info.step = step.item<int64_t>();
+    info.wall_s = wall.item<double>();
+    auto params = simulator.named_parameters();
+    auto buffers = simulator.named_buffers();
+    for (const auto& [name, sizes] : expected) {
+      const torch::Tensor* t = params.find(name);
+      if (!t) t = buffers.find(name);
+      if (!t || t->sizes().vec() != sizes)
+        throw InputError(path + ": checkpoint tensor '" + name +
+                         "' has another shape than this model's (config and checkpoint differ)");
+    }
+  } catch (const c10::Error& e) {
+    std::string what = e.what_without_backtrace();
+    if (what.size() > 300) what = what.substr(0, 300) + "...";
+    throw InputError(path + ": checkpoint does not match this model or is corrupt (" + what + ")");
+  }
+  return info;
+}
+
+}  // namespace bsms

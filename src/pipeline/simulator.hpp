@@ -1,0 +1,48 @@
+// The learned simulator: a graph model plus its input and output normalizers, saved together.
+#pragma once
+
+#include <torch/nn/module.h>
+#include <torch/optim/optimizer.h>
+
+#include <memory>
+#include <string>
+
+#include "models/layers.hpp"
+#include "models/networks.hpp"
+#include "pipeline/lagrangian.hpp"
+#include "pipeline/train_config.hpp"
+
+namespace bsms {
+
+class LearnedSimulator : public torch::nn::Module {
+ public:
+  // `levels`: the level count of every graph the BSMS model sees (1 for MeshGraphNets).
+  LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& model, int levels);
+
+  // Mean over predicted nodes of the squared error in normalised target space. `target` is the
+  // raw acceleration [N, dim]. With `accumulate`, normalizer statistics are updated first.
+  torch::Tensor loss(const Batch& batch, const torch::Tensor& target, bool accumulate);
+  // Raw acceleration [N, dim] predicted for the batch.
+  torch::Tensor predict(const Batch& batch);
+
+  GraphModel& model() { return *model_; }
+  int64_t num_parameters() const;
+
+ private:
+  torch::Tensor forward_normalized(const Batch& batch);
+  std::shared_ptr<GraphModel> model_;
+  std::shared_ptr<Normalizer> input_norm_, output_norm_;
+};
+
+// Checkpoint: simulator parameters and buffers, optimizer state and the training step, written
+// atomically. Errors (missing, corrupt, mismatched shapes) are InputErrors naming the file.
+void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                     torch::optim::Optimizer& optimizer, int64_t step, double wall_s);
+struct CheckpointInfo {
+  int64_t step = 0;
+  double wall_s = 0.0;
+};
+CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                               torch::optim::Optimizer* optimizer);
+
+}  // namespace bsms

@@ -1,0 +1,105 @@
+#include "pipeline/train_config.hpp"
+
+namespace bsms {
+
+TrainConfig parse_train_config(const Json& json, const std::string& file) {
+  TrainConfig c;
+  JsonObjectReader top(json, {file, ""});
+  c.data = top.get<std::string>("data");
+  c.steps = top.get<int64_t>("steps");
+  require(c.steps >= 1, top.context("steps"), "a positive integer");
+  c.time_budget_s = top.opt<double>("time_budget_s", c.time_budget_s);
+  require(c.time_budget_s >= 0, top.context("time_budget_s"), ">= 0 (0 = no budget)");
+  c.valid_every = top.opt<int64_t>("valid_every", c.valid_every);
+  require(c.valid_every >= 1, top.context("valid_every"), "a positive integer");
+  c.valid_samples = top.opt<int>("valid_samples", c.valid_samples);
+  require(c.valid_samples >= 1, top.context("valid_samples"), "a positive integer");
+  c.normalizer_steps = top.opt<int64_t>("normalizer_steps", c.normalizer_steps);
+  require(c.normalizer_steps >= 1, top.context("normalizer_steps"), "a positive integer");
+  c.seed = top.opt<uint64_t>("seed", c.seed);
+
+  if (top.has("model")) {
+    JsonObjectReader m(top.raw("model"), top.context("model"));
+    c.model.type = m.opt<std::string>("type", c.model.type);
+    require(c.model.type == "bsms" || c.model.type == "mgn", m.context("type"),
+            "\"bsms\" or \"mgn\"");
+    c.model.latent = m.opt<int64_t>("latent", c.model.latent);
+    require(c.model.latent >= 1 && c.model.latent <= 4096, m.context("latent"), "in 1..4096");
+    if (m.has("levels") && m.raw("levels").is_string()) {
+      require(m.raw("levels").get<std::string>() == "auto", m.context("levels"),
+              "\"auto\" or an integer >= 1");
+      c.model.levels = 0;
+    } else {
+      c.model.levels = m.opt<int>("levels", 0);
+      require(c.model.levels >= 0 && c.model.levels <= 64, m.context("levels"),
+              "\"auto\" or an integer in 1..64");
+    }
+    c.model.seeding = m.opt<std::string>("seeding", c.model.seeding);
+    require(c.model.seeding == "minave" || c.model.seeding == "closecenter" ||
+                c.model.seeding == "random",
+            m.context("seeding"), "one of minave, closecenter, random");
+    c.model.message_passing_steps =
+        m.opt<int>("message_passing_steps", c.model.message_passing_steps);
+    require(c.model.message_passing_steps >= 1 && c.model.message_passing_steps <= 100,
+            m.context("message_passing_steps"), "in 1..100");
+    m.finish();
+  }
+  if (top.has("features")) {
+    JsonObjectReader f(top.raw("features"), top.context("features"));
+    if (f.has("contact_radius") && f.raw("contact_radius").is_string()) {
+      require(f.raw("contact_radius").get<std::string>() == "auto", f.context("contact_radius"),
+              "\"auto\", 0 (off) or a radius > 0");
+      c.features.contact_radius = -1.0;
+    } else {
+      c.features.contact_radius = f.opt<double>("contact_radius", c.features.contact_radius);
+    }
+    c.features.noise_std = f.opt<double>("noise_std", c.features.noise_std);
+    require(c.features.noise_std >= 0, f.context("noise_std"), ">= 0");
+    c.features.num_node_types = f.opt<int>("num_node_types", c.features.num_node_types);
+    require(c.features.num_node_types >= 0 && c.features.num_node_types <= 64,
+            f.context("num_node_types"), "in 0..64 (0 = auto)");
+    f.finish();
+  }
+  if (top.has("optimizer")) {
+    JsonObjectReader o(top.raw("optimizer"), top.context("optimizer"));
+    c.optimizer.lr = o.opt<double>("lr", c.optimizer.lr);
+    require(c.optimizer.lr > 0 && c.optimizer.lr < 1, o.context("lr"), "in (0, 1)");
+    c.optimizer.lr_final = o.opt<double>("lr_final", c.optimizer.lr_final);
+    require(c.optimizer.lr_final > 0 && c.optimizer.lr_final <= c.optimizer.lr,
+            o.context("lr_final"), "in (0, lr]");
+    c.optimizer.batch_size = o.opt<int>("batch_size", c.optimizer.batch_size);
+    require(c.optimizer.batch_size >= 1 && c.optimizer.batch_size <= 1024, o.context("batch_size"),
+            "in 1..1024");
+    o.finish();
+  }
+  top.finish();
+  return c;
+}
+
+Json to_json(const TrainConfig& c) {
+  Json contact = c.features.contact_radius < 0 ? Json("auto") : Json(c.features.contact_radius);
+  Json levels = c.model.levels == 0 ? Json("auto") : Json(c.model.levels);
+  return Json{{"data", c.data},
+              {"steps", c.steps},
+              {"time_budget_s", c.time_budget_s},
+              {"valid_every", c.valid_every},
+              {"valid_samples", c.valid_samples},
+              {"normalizer_steps", c.normalizer_steps},
+              {"seed", c.seed},
+              {"model",
+               {{"type", c.model.type},
+                {"latent", c.model.latent},
+                {"levels", levels},
+                {"seeding", c.model.seeding},
+                {"message_passing_steps", c.model.message_passing_steps}}},
+              {"features",
+               {{"contact_radius", contact},
+                {"noise_std", c.features.noise_std},
+                {"num_node_types", c.features.num_node_types}}},
+              {"optimizer",
+               {{"lr", c.optimizer.lr},
+                {"lr_final", c.optimizer.lr_final},
+                {"batch_size", c.optimizer.batch_size}}}};
+}
+
+}  // namespace bsms

@@ -1,0 +1,52 @@
+// Training configuration (configs/train/*.json): one typed struct per concern, read strictly.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+
+namespace bsms {
+
+struct ModelConfig {
+  std::string type = "bsms";  // "bsms" | "mgn"
+  int64_t latent = 128;
+  int levels = 0;                  // BSMS: total levels incl. the mesh; 0 = auto (from the mesh)
+  std::string seeding = "minave";  // seeding of the multilevel graphs
+  int message_passing_steps = 15;  // MeshGraphNets
+};
+
+struct FeatureConfig {
+  // Contact edges: radius search on world positions between nodes the mesh does not join.
+  // < 0: auto (on when a training trajectory has several bodies, radius = 1.5 × mean mesh edge
+  // length); 0: off; > 0: this radius (m).
+  double contact_radius = -1.0;
+  double noise_std = 3e-4;  // Gaussian noise on input positions (m)
+  int num_node_types = 0;   // one-hot width; 0 = auto (max node_type in training data + 1)
+};
+
+struct OptimizerConfig {
+  double lr = 1e-4;
+  double lr_final = 1e-6;  // exponential decay from lr to lr_final over `steps`
+  int batch_size = 2;      // graphs per step (block-diagonal merge)
+};
+
+struct TrainConfig {
+  std::string data;                 // dataset folder (train.h5/valid.h5 or public {split}/ folders)
+  int64_t steps = 1000;             // training steps
+  double time_budget_s = 0.0;       // > 0: also stop after this many wall seconds of training
+  int64_t valid_every = 200;        // validation loss and checkpoint every this many steps
+  int valid_samples = 16;           // (trajectory, frame) samples in each validation
+  int64_t normalizer_steps = 1000;  // steps during which normalizers accumulate statistics
+  uint64_t seed = 0;
+  ModelConfig model;
+  FeatureConfig features;
+  OptimizerConfig optimizer;
+};
+
+// Reads and validates `json` (from `file`); InputError names the file and the key.
+TrainConfig parse_train_config(const Json& json, const std::string& file);
+Json to_json(const TrainConfig& config);
+
+}  // namespace bsms

@@ -1,0 +1,355 @@
+#include "pipeline/trainer.hpp"
+
+#include <ATen/CPUGeneratorImpl.h>
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <set>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+#include "core/runtime.hpp"
+#include "models/graph_ops.hpp"
+#include "pipeline/lagrangian.hpp"
+#include "pipeline/run_files.hpp"
+#include "pipeline/simulator.hpp"
+
+namespace bsms {
+namespace fs = std::filesystem;
+
+std::string run_config_path(const std::string& run) {
+  return (fs::path(run) / "config.json").string();
+}
+std::string run_checkpoint_path(const std::string& run) {
+  return (fs::path(run) / "checkpoints" / "latest.pt").string();
+}
+std::string run_log_path(const std::string& run) {
+  return (fs::path(run) / "train_log.csv").string();
+}
+std::string run_stats_path(const std::string& run) {
+  return (fs::path(run) / "train_stats.json").string();
+}
+
+namespace {
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+struct SampleRef {
+  int64_t trajectory;
+  int64_t frame;  // t: uses t-1, t, t+1
+};
+
+// Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
+SampleRef draw_sample(const Dataset& data, uint64_t seed, int64_t step, int slot) {
+  const uint64_t h = splitmix64(seed * 0x100000001b3ull ^ splitmix64(step * 4096 + slot));
+  const int64_t t = static_cast<int64_t>(h % static_cast<uint64_t>(data.num_trajectories()));
+  const int64_t frames = data.num_frames(t);
+  const int64_t f = 1 + static_cast<int64_t>(splitmix64(h) % static_cast<uint64_t>(frames - 2));
+  return {t, f};
+}
+
+std::string position_field(const Dataset& data) {
+  if (data.has_field("world_pos")) return "world_pos";
+  throw InputError(data.location() + ": a Lagrangian model needs the field world_pos");
+}
+
+struct LoadedSample {
+  FrameState state;
+  torch::Tensor next;
+};
+
+LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref) {
+  const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
+  const int64_t n = mesh.num_nodes();
+  const int dim = data.dim();
+  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1, 3);
+  auto x = torch::from_blob(frames.data(), {3, n, dim}, torch::kFloat32).clone();
+  LoadedSample s;
+  s.state.graphs = &store.get(mesh);
+  s.state.mesh = &mesh;
+  s.state.prev = x[0];
+  s.state.cur = x[1];
+  s.next = x[2];
+  return s;
+}
+
+double lr_at(const OptimizerConfig& o, int64_t step, int64_t steps) {
+  const double progress = steps > 1 ? static_cast<double>(step) / static_cast<double>(steps) : 0.0;
+  return o.lr * std::pow(o.lr_final / o.lr, std::min(progress, 1.0));
+}
+
+// Resolves what the data decides: dimensions, node types, position scale, contact, levels.
+struct Resolved {
+  LagrangianSpec spec;
+  int levels = 1;
+};
+
+Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
+  Resolved r;
+  LagrangianSpec& s = r.spec;
+  s.dim = train_data.dim();
+  s.public_layout = train_data.is_public_layout();
+  s.multilevel = config.model.type == "bsms";
+  int max_type = 0;
+  bool several_bodies = false;
+  for (int64_t t = 0; t < train_data.num_trajectories(); ++t) {
+    const auto& m = train_data.mesh(t);
+    if (m.dim != s.dim)
+      throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
+                       " has mesh dimension " + std::to_string(m.dim) + ", expected " +
+                       std::to_string(s.dim));
+    if (train_data.num_frames(t) < 3)
+      throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
+                       " has fewer than 3 frames");
+    for (int32_t v : m.node_type) max_type = std::max(max_type, v);
+    std::set<int32_t> bodies(m.body_id.begin(), m.body_id.end());
+    several_bodies = several_bodies || bodies.size() > 1;
+  }
+  s.num_node_types = config.features.num_node_types > 0 ? config.features.num_node_types
+                                                        : std::max(max_type + 1, 4);
+  // Position scale: mean mesh edge length of the first training mesh.
+  GraphStore probe(Seeding::kCloseCenter, 1, {});
+  const double edge = probe.get(train_data.mesh(0)).mean_edge_length;
+  s.position_scale = edge > 0 ? edge : 1.0;
+  if (config.features.contact_radius < 0) {
+    s.contact_radius = several_bodies ? 1.5 * edge : 0.0;
+  } else {
+    s.contact_radius = config.features.contact_radius;
+  }
+  if (config.model.type == "mgn") {
+    r.levels = 1;
+  } else {
+    r.levels = config.model.levels > 0
+                   ? config.model.levels
+                   : auto_levels(train_data.mesh(0), parse_seeding(config.model.seeding));
+  }
+  return r;
+}
+
+// Drops log rows after `step` (resume) and returns the file for appending.
+std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fresh) {
+  std::vector<std::string> kept;
+  if (!fresh && fs::exists(path)) {
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("step", 0) == 0) continue;
+      if (std::stoll(line.substr(0, line.find(','))) <= keep_until_step) kept.push_back(line);
+    }
+  }
+  {
+    AtomicOutput out(path);
+    std::ofstream f(out.temp_path());
+    f << "step,wall_s,loss,valid_loss,lr\n";
+    for (const auto& l : kept) f << l << '\n';
+    f.close();
+    out.commit();
+  }
+  return std::ofstream(path, std::ios::app);
+}
+
+}  // namespace
+
+TrainResult train(const TrainRequest& request) {
+  Json raw = load_json_file(request.config_path);
+  for (const auto& set : request.overrides) apply_override(raw, set, "--set " + set);
+  TrainConfig config = parse_train_config(raw, request.config_path);
+  const int threads = configure_threads(set_num_threads(request.threads));
+  torch::manual_seed(config.seed);
+
+  TrainResult result;
+  result.run_dir = request.out.empty()
+                       ? (fs::path("runs") / fs::path(request.config_path).stem()).string()
+                       : request.out;
+  const std::string run = result.run_dir;
+  const Dataset train_data = Dataset::open_split(config.data, "train");
+  const Dataset valid_data = [&] {
+    try {
+      return Dataset::open_split(config.data, "valid");
+    } catch (const InputError&) {
+      return Dataset::open_split(config.data, "train");
+    }
+  }();
+  const Resolved resolved = resolve(config, train_data);
+  std::error_code ec;
+  fs::create_directories(fs::path(run) / "checkpoints", ec);
+  if (ec) throw InputError(run + ": cannot create the run folder (" + ec.message() + ")");
+
+  const std::string checkpoint = run_checkpoint_path(run);
+  if (!request.resume && fs::exists(checkpoint))
+    throw InputError(run +
+                     ": run folder already holds a checkpoint; pass --resume to continue it "
+                     "or --out for a new run");
+  if (request.resume && !fs::exists(checkpoint))
+    throw InputError(checkpoint + ": nothing to resume (no checkpoint in this run folder)");
+
+  const Json run_json = {{"config", to_json(config)},
+                         {"features_resolved", to_json(resolved.spec)},
+                         {"levels", resolved.levels},
+                         {"config_file", request.config_path}};
+  if (request.resume) {
+    const Json saved = load_json_file(run_config_path(run));
+    Json a = saved.value("config", Json::object()), b = run_json["config"];
+    for (auto* j : {&a, &b}) {
+      j->erase("steps");
+      j->erase("time_budget_s");
+    }
+    if (a != b || saved.value("levels", -1) != resolved.levels)
+      throw InputError(run_config_path(run) +
+                       ": the run was trained with another configuration; "
+                       "only steps and time_budget_s may change on --resume");
+  }
+  write_json_atomic(run_config_path(run), run_json);
+
+  LagrangianAdapter adapter(resolved.spec);
+  std::vector<std::string> cache_dirs = {(fs::path(config.data) / "multilevel").string(),
+                                         (fs::path(run) / "multilevel").string()};
+  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
+  GraphStore store(parse_seeding(config.model.seeding), resolved.levels, cache_dirs);
+  auto simulator = std::make_shared<LearnedSimulator>(resolved.spec, config.model, resolved.levels);
+  torch::optim::Adam optimizer(simulator->parameters(),
+                               torch::optim::AdamOptions(config.optimizer.lr));
+
+  int64_t step = 0;
+  double wall_before = 0.0;
+  if (request.resume) {
+    const CheckpointInfo info = load_checkpoint(checkpoint, *simulator, &optimizer);
+    step = info.step;
+    wall_before = info.wall_s;
+  }
+  std::ofstream log = open_log(run_log_path(run), step, !request.resume);
+
+  // Fixed validation samples: the same every time, no noise.
+  std::vector<SampleRef> valid_refs;
+  for (int i = 0; i < config.valid_samples; ++i)
+    valid_refs.push_back(draw_sample(valid_data, config.seed ^ 0x5bd1e995ull, -1, i));
+  GraphStore& valid_store = store;
+
+  auto validate = [&]() {
+    torch::NoGradGuard no_grad;
+    simulator->eval();
+    double total = 0;
+    for (const auto& ref : valid_refs) {
+      LoadedSample s = load_sample(valid_data, valid_store, ref);
+      Batch batch = adapter.make_batch({s.state});
+      total += simulator->loss(batch, adapter.target(batch, s.next), false).item<double>();
+    }
+    simulator->train();
+    return total / static_cast<double>(valid_refs.size());
+  };
+
+  if (!request.quiet)
+    std::cerr << "bsms train: " << config.model.type << ", " << resolved.levels << " level(s), "
+              << simulator->num_parameters() << " parameters, " << train_data.num_trajectories()
+              << " training trajectories, contact "
+              << (resolved.spec.has_contact()
+                      ? "radius " + std::to_string(resolved.spec.contact_radius)
+                      : std::string("off"))
+              << ", " << threads << " thread(s) -> " << run << "\n";
+
+  ProgressBar bar("train", config.steps);
+  Stopwatch clock;
+  std::vector<double> step_ms;
+  double last_loss = 0, last_valid = std::nan("");
+  const int64_t start_step = step;
+  simulator->train();
+  const int64_t stop_step =
+      request.until > 0 ? std::min(request.until, config.steps) : config.steps;
+  while (step < stop_step) {
+    if (config.time_budget_s > 0 && wall_before + clock.seconds() >= config.time_budget_s) break;
+    Stopwatch step_clock;
+    const double lr = lr_at(config.optimizer, step, config.steps);
+    for (auto& group : optimizer.param_groups())
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    std::vector<FrameState> states;
+    std::vector<torch::Tensor> nexts, noise;
+    auto generator =
+        at::detail::createCPUGenerator(splitmix64(config.seed ^ (0x1234567ull + step)));
+    for (int slot = 0; slot < config.optimizer.batch_size; ++slot) {
+      LoadedSample s =
+          load_sample(train_data, store, draw_sample(train_data, config.seed, step, slot));
+      states.push_back(s.state);
+      nexts.push_back(s.next);
+      noise.push_back(torch::randn(s.state.cur.sizes(), generator, torch::kFloat32) *
+                      config.features.noise_std);
+    }
+    Batch batch = adapter.make_batch(states, noise);
+    const auto target = adapter.target(batch, torch::cat(nexts, 0));
+    optimizer.zero_grad();
+    auto loss = simulator->loss(batch, target, step < config.normalizer_steps);
+    loss.backward();
+    optimizer.step();
+    last_loss = loss.item<double>();
+    if (!std::isfinite(last_loss))
+      throw NumericalError("training step " + std::to_string(step) +
+                           ": loss is not finite (lower optimizer.lr or check the data)");
+    ++step;
+    step_ms.push_back(step_clock.milliseconds());
+    const bool checkpoint_now =
+        step % config.valid_every == 0 || step == config.steps || step == stop_step;
+    std::string valid_text;
+    if (checkpoint_now) {
+      last_valid = validate();
+      std::ostringstream v;
+      v << std::setprecision(6) << last_valid;
+      valid_text = v.str();
+      save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
+    }
+    log << step << ',' << std::setprecision(6) << wall_before + clock.seconds() << ',' << last_loss
+        << ',' << valid_text << ',' << lr << '\n';
+    if (checkpoint_now) log.flush();
+    std::ostringstream extra;
+    extra << "loss " << std::setprecision(3) << last_loss << ", " << std::setprecision(3)
+          << 1000.0 / step_ms.back() << " steps/s";
+    if (!request.quiet) bar.update(step, extra.str());
+  }
+  // A time budget may stop between checkpoints: save where we are.
+  if (step > start_step && step % config.valid_every != 0 && step != stop_step) {
+    last_valid = validate();
+    save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
+    log << step << ',' << wall_before + clock.seconds() << ',' << last_loss << ',' << last_valid
+        << ',' << lr_at(config.optimizer, step, config.steps) << '\n';
+  }
+  log.close();
+  if (!request.quiet) bar.finish();
+
+  std::vector<double> sorted = step_ms;
+  std::sort(sorted.begin(), sorted.end());
+  result.steps = step;
+  result.final_loss = last_loss;
+  result.final_valid_loss = last_valid;
+  result.train_ms_per_step = sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
+  Json stats = {{"steps", step},
+                {"train_ms_per_step", result.train_ms_per_step},
+                {"peak_rss_mb_train", peak_rss_mb()},
+                {"threads", threads},
+                {"wall_s", wall_before + clock.seconds()},
+                {"final_loss", last_loss},
+                {"final_valid_loss", std::isfinite(last_valid) ? Json(last_valid) : Json(nullptr)},
+                {"num_parameters", simulator->num_parameters()}};
+  if (request.resume && fs::exists(run_stats_path(run))) {
+    // Keep the median of the first session when this one ran no step.
+    const Json old = load_json_file(run_stats_path(run));
+    if (step_ms.empty()) stats["train_ms_per_step"] = old.value("train_ms_per_step", 0.0);
+    stats["peak_rss_mb_train"] = std::max(old.value("peak_rss_mb_train", 0.0), peak_rss_mb());
+  }
+  write_json_atomic(run_stats_path(run), stats);
+  if (!request.quiet)
+    std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
+              << last_valid << ", " << result.train_ms_per_step << " ms/step (median), peak RSS "
+              << peak_rss_mb() << " MB\n";
+  return result;
+}
+
+}  // namespace bsms

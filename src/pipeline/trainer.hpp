@@ -1,0 +1,37 @@
+// `bsms train`: training loop with validation, atomic checkpoints and exact resume.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "pipeline/train_config.hpp"
+
+namespace bsms {
+
+struct TrainRequest {
+  std::string config_path;
+  std::vector<std::string> overrides;  // "key.path=value"
+  std::string out;                     // run folder; empty: runs/<config file stem>
+  bool resume = false;
+  int64_t until = 0;  // > 0: stop (with a checkpoint) at this step; resumable
+  int threads = 0;
+  bool quiet = false;  // no progress bar (tests)
+};
+
+struct TrainResult {
+  std::string run_dir;
+  int64_t steps = 0;
+  double final_loss = 0.0;
+  double final_valid_loss = 0.0;
+  double train_ms_per_step = 0.0;  // median
+};
+
+TrainResult train(const TrainRequest& request);
+
+// Files of a run folder (DESIGN.md "Runs").
+std::string run_config_path(const std::string& run);
+std::string run_checkpoint_path(const std::string& run);
+std::string run_log_path(const std::string& run);
+std::string run_stats_path(const std::string& run);
+
+}  // namespace bsms

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Usage: expect_exit.sh CODE ABSENT_PATH COMMAND...
+# Runs COMMAND, checks its exit code is CODE, that it printed exactly one line on stderr (when
+# CODE is 2) and that ABSENT_PATH (use - for none) does not exist afterwards.
+set -u
+want=$1 absent=$2
+shift 2
+err=$(mktemp)
+"$@" 2>"$err" >/dev/null
+got=$?
+lines=$(wc -l <"$err")
+status=0
+if [ "$got" != "$want" ]; then
+  echo "expected exit $want, got $got: $*"; cat "$err"; status=1
+fi
+if [ "$want" = 2 ] && [ "$lines" != 1 ]; then
+  echo "expected one line on stderr, got $lines:"; cat "$err"; status=1
+fi
+if [ "$absent" != - ] && [ -e "$absent" ]; then
+  echo "output $absent exists after a failed run"; status=1
+fi
+[ $status = 0 ] && echo "ok: exit $got: $(cat "$err")"
+rm -f "$err"
+exit $status

@@ -1,0 +1,264 @@
+#include "models/graph_ops.hpp"
+
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include "core/error.hpp"
+#include "models/graph_tensors.hpp"
+#include "tests/models/graph_fixtures.hpp"
+
+namespace bsms {
+namespace {
+
+// Random directed edges with duplicates and self loops, unsorted: [E, 2].
+torch::Tensor random_pairs(int64_t num_nodes, int64_t num_edges) {
+  return torch::randint(0, num_nodes, {num_edges, 2}, torch::kInt64);
+}
+
+void expect_close(const torch::Tensor& a, const torch::Tensor& b, double tol = 1e-5) {
+  ASSERT_EQ(a.sizes(), b.sizes());
+  EXPECT_LT((a - b).abs().max().item<double>(), tol * (1.0 + b.abs().max().item<double>()));
+}
+
+TEST(EdgeIndex, GroupsEdgesBySenderAndReceiver) {
+  torch::manual_seed(1);
+  auto pairs = random_pairs(7, 40);
+  auto index = EdgeIndex::from_pairs(pairs, 7);
+  for (int side = 0; side < 2; ++side) {
+    auto key = side == 0 ? index.senders : index.receivers;
+    auto off = side == 0 ? index.sender_offsets : index.receiver_offsets;
+    auto order = side == 0 ? index.sender_order : index.receiver_order;
+    EXPECT_TRUE(torch::equal(key, pairs.select(1, side)));
+    ASSERT_EQ(off.size(0), 8);
+    EXPECT_EQ(off[7].item<int64_t>(), 40);
+    for (int64_t n = 0; n < 7; ++n) {
+      auto group = order.slice(0, off[n].item<int64_t>(), off[n + 1].item<int64_t>());
+      EXPECT_TRUE(key.index_select(0, group).eq(n).all().item<bool>());
+      EXPECT_EQ(group.size(0), key.eq(n).sum().item<int64_t>());
+      EXPECT_TRUE(group.equal(std::get<0>(group.sort())));  // stable: ascending edge ids
+    }
+  }
+}
+
+TEST(EdgeIndex, RejectsOutOfRangeAndBadShape) {
+  auto bad = torch::tensor({0, 1, 1, 5}, torch::kInt64).reshape({2, 2});
+  EXPECT_THROW(EdgeIndex::from_pairs(bad, 5), InputError);
+  EXPECT_THROW(EdgeIndex::from_pairs(torch::zeros({3, 3}, torch::kInt64), 5), InputError);
+}
+
+// Runs f and g on the same leaves with the same upstream weights; compares outputs and gradients.
+template <class F, class G>
+void expect_same_function(std::vector<torch::Tensor> leaves, const F& f, const G& g) {
+  std::vector<std::vector<torch::Tensor>> grads(2);
+  std::vector<torch::Tensor> outs;
+  torch::Tensor weight;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (auto& t : leaves) {
+      if (t.grad().defined()) t.mutable_grad().zero_();
+    }
+    auto out = pass == 0 ? f() : g();
+    if (!weight.defined()) weight = torch::randn_like(out);
+    (out * weight).sum().backward();
+    outs.push_back(out.detach());
+    for (auto& t : leaves) grads[pass].push_back(t.grad().clone());
+  }
+  expect_close(outs[0], outs[1]);
+  for (size_t i = 0; i < leaves.size(); ++i) expect_close(grads[0][i], grads[1][i]);
+}
+
+TEST(GraphOps, EdgeFirstLayerMatchesConcatThenLinear) {
+  torch::manual_seed(2);
+  const int64_t n = 23, e = 150, c = 19, k = 4;
+  auto index = EdgeIndex::from_pairs(random_pairs(n, e), n);
+  auto base = torch::randn({e, c}, torch::requires_grad());
+  auto features = torch::randn({e, k}, torch::requires_grad());
+  auto weight = torch::randn({c, k}, torch::requires_grad());
+  auto bias = torch::randn({c}, torch::requires_grad());
+  auto a = torch::randn({n, c}, torch::requires_grad());
+  auto b = torch::randn({n, c}, torch::requires_grad());
+  expect_same_function(
+      {base, features, weight, bias, a, b},
+      [&] { return edge_first_layer(base, features, weight, bias, a, b, index); },
+      [&] {
+        return torch::relu(base + torch::addmm(bias, features, weight.t()) +
+                           a.index_select(0, index.senders) + b.index_select(0, index.receivers));
+      });
+  // Without a base tensor.
+  expect_same_function(
+      {features, weight, bias, a, b},
+      [&] { return edge_first_layer(torch::Tensor(), features, weight, bias, a, b, index); },
+      [&] {
+        return torch::relu(torch::addmm(bias, features, weight.t()) +
+                           a.index_select(0, index.senders) + b.index_select(0, index.receivers));
+      });
+}
+
+TEST(GraphOps, LinearMatchesAddmm) {
+  torch::manual_seed(6);
+  // Enough rows to split the GEMMs over threads, and a strided weight view.
+  auto x = torch::randn({1000, 7}, torch::requires_grad());
+  auto w_full = torch::randn({9, 12}, torch::requires_grad());
+  auto bias = torch::randn({9}, torch::requires_grad());
+  auto w = [&] { return w_full.narrow(1, 3, 7); };
+  for (bool relu : {false, true}) {
+    expect_same_function(
+        {x, w_full, bias}, [&] { return linear(x, w(), bias, relu); },
+        [&] {
+          auto y = torch::addmm(bias, x, w().t());
+          return relu ? torch::relu(y) : y;
+        });
+    expect_same_function(
+        {x, w_full}, [&] { return linear(x, w(), {}, relu); },
+        [&] {
+          auto y = x.mm(w().t());
+          return relu ? torch::relu(y) : y;
+        });
+  }
+}
+
+TEST(GraphOps, LayerNormSegmentSumMatchesLayerNormThenIndexAdd) {
+  torch::manual_seed(3);
+  const int64_t n = 17, e = 120, c = 33;
+  auto index = EdgeIndex::from_pairs(random_pairs(n, e), n);
+  auto x = (3 * torch::randn({e, c}) + 1).requires_grad_();
+  auto bias = torch::randn({c}, torch::requires_grad());
+  expect_same_function(
+      {x, bias}, [&] { return layer_norm_segment_sum(x, bias, index); },
+      [&] {
+        return torch::zeros({n, c}).index_add(0, index.receivers, torch::layer_norm(x + bias, {c}));
+      });
+}
+
+TEST(GraphOps, SegmentSumMatchesIndexAdd) {
+  torch::manual_seed(4);
+  const int64_t n = 11, e = 60, c = 5;
+  auto index = EdgeIndex::from_pairs(random_pairs(n, e), n);
+  auto x = torch::randn({e, c}, torch::requires_grad());
+  auto weight = torch::randn({n, c});
+  auto out = segment_sum(x, index);
+  (out * weight).sum().backward();
+  auto ref = torch::zeros({n, c}).index_add(0, index.receivers, x);
+  expect_close(out, ref);
+  expect_close(x.grad(), weight.index_select(0, index.receivers));
+}
+
+TEST(GraphOps, EmptyEdgeSetGivesZeros) {
+  auto index = EdgeIndex::empty(4);
+  auto out = layer_norm_segment_sum(torch::zeros({0, 3}), torch::zeros({3}), index);
+  EXPECT_TRUE(torch::equal(out, torch::zeros({4, 3})));
+}
+
+// Dense transition matrix over all fine nodes: M[j, i] = down_weight of edge i -> j.
+torch::Tensor dense_weights(const GraphLevel& fine, const GraphLevel& coarse) {
+  const auto& g = fine.graph;
+  auto m = torch::zeros({g.num_nodes, g.num_nodes});
+  for (int64_t i = 0; i < g.num_nodes; ++i) {
+    for (int64_t p = g.offsets[i]; p < g.offsets[i + 1]; ++p) {
+      m[g.targets[p]][i] = coarse.down_weight[p];
+    }
+  }
+  return m;
+}
+
+TEST(Transitions, MatchDenseFormula) {
+  torch::manual_seed(5);
+  auto mesh = testing::grid_mesh(7, 5);
+  auto graph = testing::reference_multilevel(mesh.graph, 4);
+  auto hierarchy = make_hierarchy(graph);
+  ASSERT_EQ(hierarchy.num_levels(), 4);
+  for (int k = 0; k + 1 < 4; ++k) {
+    const auto& fine = graph.levels[k];
+    const auto& coarse = graph.levels[k + 1];
+    auto pooled = torch::tensor(coarse.pooled, torch::kInt64);
+    auto m = dense_weights(fine, coarse);
+    auto v = torch::randn({fine.num_nodes(), 6}, torch::requires_grad());
+    auto down = transfer_down(v, hierarchy.transitions[k]);
+    expect_close(down, m.mm(v).index_select(0, pooled));
+    auto u = torch::randn({coarse.num_nodes(), 6}, torch::requires_grad());
+    auto unpooled = torch::zeros({fine.num_nodes(), 6}).index_copy(0, pooled, u);
+    auto up = transfer_up(u, hierarchy.transitions[k]);
+    expect_close(up, m.t().mm(unpooled));
+    // Adjoint gradients: d(down)/dv = Dᵀ, d(up)/du = D.
+    auto gd = torch::randn_like(down), gu = torch::randn_like(up);
+    (down * gd).sum().backward();
+    (up * gu).sum().backward();
+    auto gd_full = torch::zeros({fine.num_nodes(), 6}).index_copy(0, pooled, gd);
+    expect_close(v.grad(), m.t().mm(gd_full));
+    expect_close(u.grad(), m.mm(gu).index_select(0, pooled));
+  }
+}
+
+TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
+  auto mesh = testing::grid_mesh(9, 8);
+  auto graph = testing::reference_multilevel(mesh.graph, 5);
+  auto hierarchy = make_hierarchy(graph);
+  for (int k = 0; k + 1 < 5; ++k) {
+    const auto& t = hierarchy.transitions[k];
+    auto ones = torch::full({t.fine_nodes, 3}, 2.5f);
+    // Receiver weights sum to 1, so a constant field is reproduced on the coarse level.
+    expect_close(transfer_down(ones, t), torch::full({t.coarse_nodes, 3}, 2.5f));
+    // Up distributes each coarse value over its fine neighbours with weights summing to 1.
+    auto u = torch::rand({t.coarse_nodes, 3});
+    expect_close(transfer_up(u, t).sum(0), u.sum(0));
+    expect_close(transfer_up(torch::full({t.coarse_nodes, 3}, 2.5f), t).sum(0),
+                 torch::full({3}, 2.5f * t.coarse_nodes));
+  }
+}
+
+TEST(GraphHierarchy, MergeIsBlockDiagonal) {
+  auto m1 = testing::grid_mesh(5, 4), m2 = testing::grid_mesh(3, 6);
+  auto h1 = make_hierarchy(testing::reference_multilevel(m1.graph, 3));
+  auto h2 = make_hierarchy(testing::reference_multilevel(m2.graph, 3));
+  auto merged = merge_hierarchies({&h1, &h2});
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(merged.num_nodes(k), h1.num_nodes(k) + h2.num_nodes(k));
+    EXPECT_EQ(merged.node_offsets[k],
+              (std::vector<int64_t>{0, h1.num_nodes(k), h1.num_nodes(k) + h2.num_nodes(k)}));
+    const auto& e = merged.edge_sets[k][0];
+    EXPECT_EQ(e.num_edges(), h1.edge_sets[k][0].num_edges() + h2.edge_sets[k][0].num_edges());
+    auto x = torch::randn({merged.num_nodes(k), 4});
+    auto x1 = x.slice(0, 0, h1.num_nodes(k)), x2 = x.slice(0, h1.num_nodes(k));
+    expect_close(
+        segment_sum(x.index_select(0, e.senders), e),
+        torch::cat(
+            {segment_sum(x1.index_select(0, h1.edge_sets[k][0].senders), h1.edge_sets[k][0]),
+             segment_sum(x2.index_select(0, h2.edge_sets[k][0].senders), h2.edge_sets[k][0])}));
+    if (k < 2) {
+      expect_close(
+          transfer_down(x, merged.transitions[k]),
+          torch::cat({transfer_down(x1, h1.transitions[k]), transfer_down(x2, h2.transitions[k])}));
+    }
+  }
+  auto h3 = make_hierarchy(testing::reference_multilevel(m2.graph, 2));
+  EXPECT_THROW(merge_hierarchies({&h1, &h3}), InputError);
+}
+
+TEST(GraphHierarchy, ExtraEdgeSetsAndCache) {
+  auto mesh = testing::grid_mesh(4, 4);
+  auto graph = testing::reference_multilevel(mesh.graph, 3);
+  HierarchyCache cache;
+  const auto& h = cache.get("grid", graph);
+  EXPECT_EQ(&h, &cache.get("grid", graph));  // built once
+  auto contact = torch::tensor({0, 15, 15, 0}, torch::kInt64).reshape({2, 2});
+  auto with = h.with_edge_sets({{contact}});
+  ASSERT_EQ(with.edge_sets[0].size(), 2u);
+  EXPECT_EQ(with.edge_sets[0][1].num_edges(), 2);
+  EXPECT_EQ(with.edge_sets[2][1].num_edges(), 0);
+  EXPECT_EQ(h.edge_sets[0].size(), 1u);
+  EdgeList level0, level1;
+  level0.data = {0, 15, 15, 0, 3, 12};
+  level1.data = {1, 2};
+  auto from_lists = h.with_edge_sets(std::vector<EdgeList>{level0, level1});
+  EXPECT_EQ(from_lists.edge_sets[0][1].num_edges(), 3);
+  EXPECT_EQ(from_lists.edge_sets[1][1].num_edges(), 1);
+  EXPECT_EQ(from_lists.edge_sets[2][1].num_edges(), 0);
+  level1.data = {1, 99};
+  EXPECT_THROW(h.with_edge_sets(std::vector<EdgeList>{level0, level1}), InputError);
+  const auto& b = cache.batch({"grid", "grid"});
+  EXPECT_EQ(b.num_nodes(0), 32);
+  EXPECT_EQ(&b, &cache.batch({"grid", "grid"}));
+  EXPECT_THROW(cache.batch({"other"}), InputError);
+}
+
+}  // namespace
+}  // namespace bsms

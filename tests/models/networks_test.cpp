@@ -1,0 +1,266 @@
+#include "models/networks.hpp"
+
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "core/error.hpp"
+#include "models/checkpoint.hpp"
+#include "models/graph_ops.hpp"
+#include "tests/models/graph_fixtures.hpp"
+
+namespace bsms {
+namespace {
+
+// Mesh edges use mesh X and world x; contact edges world x only (DESIGN.md "Models").
+GraphModelOptions lagrangian_options(int levels, int64_t latent = 16) {
+  GraphModelOptions o;
+  o.input_size = 3;
+  o.output_size = 2;
+  o.latent = latent;
+  o.position_dims = {2, 2};
+  o.edge_set_fields = {{0, 1}, {1}};
+  o.num_levels = levels;
+  o.message_passing_steps = 3;
+  return o;
+}
+
+struct Problem {
+  GraphHierarchy graph;
+  torch::Tensor nodes;
+  std::vector<torch::Tensor> positions;
+};
+
+// Grid with random inputs, a perturbed world position and random contact edges on every level.
+Problem make_problem(int64_t nx, int64_t ny, int levels, bool contacts) {
+  auto mesh = testing::grid_mesh(nx, ny);
+  Problem p;
+  p.graph = make_hierarchy(testing::reference_multilevel(mesh.graph, levels));
+  if (contacts) {
+    std::vector<std::vector<torch::Tensor>> extra;
+    for (int k = 0; k < levels; ++k) {
+      extra.push_back({torch::randint(0, p.graph.num_nodes(k), {5, 2}, torch::kInt64)});
+    }
+    p.graph = p.graph.with_edge_sets(extra);
+  }
+  const int64_t n = nx * ny;
+  p.nodes = torch::randn({n, 3});
+  p.positions = {mesh.positions / 4, mesh.positions / 4 + 0.1 * torch::randn({n, 2})};
+  return p;
+}
+
+std::vector<std::shared_ptr<GraphModel>> both_models(int levels, int64_t latent = 16) {
+  return {std::make_shared<BsmsGnn>(lagrangian_options(levels, latent)),
+          std::make_shared<MeshGraphNets>(lagrangian_options(levels, latent))};
+}
+
+double max_rel_diff(const torch::Tensor& a, const torch::Tensor& b) {
+  return (a - b).abs().max().item<double>() / (1.0 + b.abs().max().item<double>());
+}
+
+TEST(Networks, OutputShapeAndGradientsReachEveryParameter) {
+  torch::manual_seed(10);
+  auto p = make_problem(7, 6, 3, true);
+  for (auto& model : both_models(3)) {
+    auto out = model->forward(p.nodes, p.positions, p.graph);
+    EXPECT_EQ(out.sizes(), (std::vector<int64_t>{42, 2}));
+    out.square().sum().backward();
+    for (const auto& param : model->named_parameters()) {
+      ASSERT_TRUE(param.value().grad().defined()) << param.key();
+      EXPECT_GT(param.value().grad().abs().sum().item<double>(), 0.0) << param.key();
+    }
+  }
+}
+
+TEST(Networks, MissingContactSetCountsAsEmpty) {
+  torch::manual_seed(11);
+  auto p = make_problem(5, 5, 2, false);
+  for (auto& model : both_models(2)) {
+    EXPECT_EQ(model->forward(p.nodes, p.positions, p.graph).size(0), 25);
+  }
+}
+
+TEST(Networks, ProjectionEqualsConcatFormulation) {
+  torch::manual_seed(12);
+  auto p = make_problem(8, 7, 3, true);
+  for (auto& model : both_models(3, 32)) {
+    std::vector<torch::Tensor> outputs, grads;
+    for (auto mode : {EdgeMlpMode::kProjection, EdgeMlpMode::kConcat}) {
+      model->zero_grad();
+      model->set_edge_mlp_mode(mode);
+      auto out = model->forward(p.nodes, p.positions, p.graph);
+      (out * torch::cos(out)).sum().backward();
+      outputs.push_back(out.detach());
+      std::vector<torch::Tensor> g;
+      for (const auto& param : model->parameters()) g.push_back(param.grad().flatten());
+      grads.push_back(torch::cat(g));
+    }
+    EXPECT_LT(max_rel_diff(outputs[0], outputs[1]), 1e-5);
+    EXPECT_LT(max_rel_diff(grads[0], grads[1]), 1e-5);
+  }
+}
+
+TEST(Networks, InferenceModeAndThreadCountGiveTheSameOutputs) {
+  torch::manual_seed(17);
+  auto p = make_problem(30, 20, 4, true);  // enough edges to split kernels over threads
+  const int threads = torch::get_num_threads();
+  for (auto& model : both_models(4)) {
+    auto reference = model->forward(p.nodes, p.positions, p.graph).detach();
+    {
+      torch::InferenceMode guard;
+      EXPECT_LT(max_rel_diff(model->forward(p.nodes, p.positions, p.graph), reference), 1e-6);
+    }
+    configure_threads(1);
+    EXPECT_LT(max_rel_diff(model->forward(p.nodes, p.positions, p.graph), reference), 1e-5);
+    configure_threads(threads);
+  }
+}
+
+TEST(Networks, BatchOfTwoMeshesEqualsEachAlone) {
+  torch::manual_seed(13);
+  auto p1 = make_problem(6, 5, 3, true);
+  auto p2 = make_problem(4, 9, 3, true);
+  auto batch = merge_hierarchies({&p1.graph, &p2.graph});
+  auto nodes = torch::cat({p1.nodes, p2.nodes});
+  std::vector<torch::Tensor> positions;
+  for (size_t f = 0; f < 2; ++f)
+    positions.push_back(torch::cat({p1.positions[f], p2.positions[f]}));
+  for (auto& model : both_models(3)) {
+    auto joint = model->forward(nodes, positions, batch);
+    auto alone = torch::cat({model->forward(p1.nodes, p1.positions, p1.graph),
+                             model->forward(p2.nodes, p2.positions, p2.graph)});
+    EXPECT_LT(max_rel_diff(joint, alone), 1e-5);
+  }
+}
+
+TEST(Networks, OverfitsTinyProblem) {
+  torch::manual_seed(14);
+  auto p = make_problem(6, 6, 3, false);
+  // A target that needs neighbourhood information: the mean of the neighbours' inputs.
+  const auto& e = p.graph.edge_sets[0][0];
+  auto counts = torch::zeros({36, 1}).index_add_(0, e.receivers, torch::ones({e.num_edges(), 1}));
+  auto target =
+      (torch::zeros({36, 3}).index_add_(0, e.receivers, p.nodes.index_select(0, e.senders)) /
+       counts)
+          .slice(1, 0, 2);
+  for (auto& model : both_models(3, 32)) {
+    torch::optim::Adam adam(model->parameters(), torch::optim::AdamOptions(1e-3));
+    // Adam at tiny losses has spikes: compare the best of the last 50 steps with the first.
+    double first = 0.0, best_late = 1e30;
+    for (int step = 0; step < 300; ++step) {
+      adam.zero_grad();
+      auto loss = (model->forward(p.nodes, p.positions, p.graph) - target).square().mean();
+      loss.backward();
+      adam.step();
+      if (step == 0) first = loss.item<double>();
+      if (step >= 250) best_late = std::min(best_late, loss.item<double>());
+    }
+    EXPECT_LT(best_late, first / 100.0)
+        << model->name() << " first " << first << " best " << best_late;
+  }
+}
+
+class CheckpointTest : public ::testing::Test {
+ protected:
+  std::string path(const std::string& name) {
+    auto dir =
+        std::filesystem::temp_directory_path() / ("bsms_models_test_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    dirs_.push_back(dir);
+    return (dir / name).string();
+  }
+  void TearDown() override {
+    for (const auto& d : dirs_) std::filesystem::remove_all(d);
+  }
+  std::vector<std::filesystem::path> dirs_;
+};
+
+// A model with its normalizers, as training code keeps it.
+struct Simulator : torch::nn::Module {
+  explicit Simulator(int64_t latent) {
+    auto o = lagrangian_options(3, latent);
+    net = register_module("net", std::make_shared<BsmsGnn>(o));
+    input_norm = register_module("input_norm", std::make_shared<Normalizer>(3));
+  }
+  std::shared_ptr<BsmsGnn> net;
+  std::shared_ptr<Normalizer> input_norm;
+};
+
+TEST_F(CheckpointTest, RoundTripGivesIdenticalOutputs) {
+  torch::manual_seed(15);
+  auto p = make_problem(6, 5, 3, true);
+  Simulator a(16);
+  a.input_norm->accumulate(3 * p.nodes + 1);
+  const auto file = path("model.pt");
+  save_module(a, file);
+  torch::manual_seed(99);
+  Simulator b(16);
+  auto before = b.net->forward(b.input_norm->normalize(p.nodes), p.positions, p.graph);
+  load_module(b, file);
+  auto expected = a.net->forward(a.input_norm->normalize(p.nodes), p.positions, p.graph);
+  auto loaded = b.net->forward(b.input_norm->normalize(p.nodes), p.positions, p.graph);
+  EXPECT_TRUE(torch::equal(expected, loaded));
+  EXPECT_FALSE(torch::equal(before, loaded));
+  EXPECT_TRUE(torch::equal(a.input_norm->mean(), b.input_norm->mean()));
+}
+
+TEST_F(CheckpointTest, MismatchedShapesThrowNamingFileAndEntry) {
+  const auto file = path("small.pt");
+  save_module(Simulator(8), file);
+  Simulator big(16);
+  auto before = big.net->parameters()[0].clone();
+  try {
+    load_module(big, file);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find(file), std::string::npos) << what;
+    EXPECT_NE(what.find("net.encoder.first.weight"), std::string::npos) << what;
+  }
+  EXPECT_TRUE(torch::equal(before, big.net->parameters()[0]));  // untouched on error
+  EXPECT_THROW(load_module(big, path("missing.pt")), InputError);
+  MeshGraphNets other(lagrangian_options(3, 16));
+  const auto other_file = path("mgn.pt");
+  save_module(other, other_file);
+  EXPECT_THROW(load_module(big, other_file), InputError);
+}
+
+TEST(Normalizer, RunningStatisticsMatchWholeData) {
+  torch::manual_seed(16);
+  Normalizer norm(3, /*max_accumulations=*/2);
+  auto x1 = torch::randn({50, 3}) * 2 + 5, x2 = torch::randn({70, 3}) * 0.5 - 1;
+  auto x3 = torch::randn({10, 3}) * 100;
+  norm.accumulate(x1);
+  norm.accumulate(x2);
+  norm.accumulate(x3);  // ignored: max_accumulations reached
+  auto all = torch::cat({x1, x2}).to(torch::kFloat64);
+  EXPECT_LT((norm.mean() - all.mean(0)).abs().max().item<double>(), 1e-9);
+  EXPECT_LT((norm.std() - all.std(0, /*unbiased=*/false)).abs().max().item<double>(), 1e-9);
+  auto y = norm.normalize(x2);
+  EXPECT_EQ(y.scalar_type(), torch::kFloat32);
+  EXPECT_LT((norm.inverse(y) - x2).abs().max().item<double>(), 1e-5);
+  EXPECT_THROW(norm.accumulate(torch::zeros({4, 2})), InputError);
+  Normalizer constant(2);
+  constant.accumulate(torch::ones({5, 2}));
+  EXPECT_TRUE(torch::isfinite(constant.normalize(torch::ones({1, 2}))).all().item<bool>());
+}
+
+TEST(Networks, RejectsInputsThatDoNotMatchTheGraph) {
+  auto p = make_problem(5, 4, 3, false);
+  BsmsGnn model(lagrangian_options(3));
+  EXPECT_THROW(model.forward(p.nodes.slice(0, 1), p.positions, p.graph), InputError);
+  EXPECT_THROW(model.forward(p.nodes, {p.positions[0]}, p.graph), InputError);
+  BsmsGnn deeper(lagrangian_options(4));
+  EXPECT_THROW(deeper.forward(p.nodes, p.positions, p.graph), InputError);
+  auto o = lagrangian_options(3);
+  o.edge_set_fields = {{0, 2}};
+  EXPECT_THROW(BsmsGnn{o}, InputError);
+}
+
+}  // namespace
+}  // namespace bsms

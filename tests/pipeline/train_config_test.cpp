@@ -1,0 +1,57 @@
+#include "pipeline/train_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "core/error.hpp"
+
+namespace bsms {
+namespace {
+
+namespace fs = std::filesystem;
+
+TEST(TrainConfig, EveryShippedConfigParsesAndRoundTrips) {
+  int count = 0;
+  for (const auto& entry :
+       fs::directory_iterator(fs::path(BSMS_SOURCE_DIR) / "configs" / "train")) {
+    if (entry.path().extension() != ".json") continue;
+    const TrainConfig c =
+        parse_train_config(load_json_file(entry.path().string()), entry.path().string());
+    EXPECT_FALSE(c.data.empty());
+    EXPECT_GT(c.steps, 0);
+    const TrainConfig again = parse_train_config(to_json(c), "resolved");
+    EXPECT_EQ(to_json(again), to_json(c));
+    ++count;
+  }
+  EXPECT_GE(count, 2);
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_train_config(Json::parse(text), "t.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TrainConfig, BadValuesNameTheKey) {
+  EXPECT_NE(error_of(R"({"steps": 5})").find("'data'"), std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 0})").find("steps"), std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"type": "gcn"}})").find("model.type"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(R"({"data": "d", "steps": 5, "model": {"levels": "many"}})").find("model.levels"),
+      std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "optimizer": {"lr": -1}})").find("optimizer.lr"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"noise_std": "x"}})")
+                .find("features.noise_std"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "stepz": 5})").find("stepz"), std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
+}
+
+}  // namespace
+}  // namespace bsms
