@@ -76,6 +76,11 @@ void load_module(torch::nn::Module& module, const std::string& path) {
     throw InputError(path +
                      ": not a readable checkpoint: " + first_line(e.what_without_backtrace()));
   }
+  read_module(module, archive, path);
+}
+
+void read_module(torch::nn::Module& module, torch::serialize::InputArchive& archive,
+                 const std::string& path) {
   std::vector<std::pair<torch::Tensor, torch::Tensor>> pairs;
   collect(module, archive, "", path, pairs);
   torch::NoGradGuard no_grad;

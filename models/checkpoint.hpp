@@ -2,6 +2,7 @@
 #pragma once
 
 #include <torch/nn/module.h>
+#include <torch/serialize/input-archive.h>
 
 #include <string>
 
@@ -14,5 +15,10 @@ void save_module(const torch::nn::Module& module, const std::string& path);
 // structure: InputError naming the file and the entry on a missing entry or a shape mismatch, or
 // when the file is not a readable archive. Nothing is changed unless every entry matches.
 void load_module(torch::nn::Module& module, const std::string& path);
+
+// The same check-then-copy from an archive already loaded (e.g. a training checkpoint holding the
+// module next to optimizer state); `path` names the file in errors.
+void read_module(torch::nn::Module& module, torch::serialize::InputArchive& archive,
+                 const std::string& path);
 
 }  // namespace bsms

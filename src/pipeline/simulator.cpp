@@ -6,6 +6,7 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "models/checkpoint.hpp"
 
 namespace bsms {
 
@@ -81,16 +82,14 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
                                torch::optim::Optimizer* optimizer) {
   if (!std::filesystem::exists(path)) throw InputError(path + ": checkpoint not found");
   CheckpointInfo info;
-  // LibTorch's load replaces tensors whatever their shape: compare shapes ourselves.
-  std::vector<std::pair<std::string, std::vector<int64_t>>> expected;
-  for (const auto& item : simulator.named_parameters())
-    expected.emplace_back(item.key(), item.value().sizes().vec());
-  for (const auto& item : simulator.named_buffers())
-    expected.emplace_back(item.key(), item.value().sizes().vec());
+  torch::serialize::InputArchive archive;
   try {
-    torch::serialize::InputArchive archive;
     archive.load_from(path);
-    simulator.load(archive);
+  } catch (const c10::Error&) {
+    throw InputError(path + ": not a readable checkpoint (truncated or corrupt)");
+  }
+  read_module(simulator, archive, path);  // checks every entry's shape before copying
+  try {
     if (optimizer) {
       torch::serialize::InputArchive optimizer_archive;
       archive.read("optimizer", optimizer_archive);
@@ -101,19 +100,10 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
     archive.read("wall_s", wall);
     info.step = step.item<int64_t>();
     info.wall_s = wall.item<double>();
-    auto params = simulator.named_parameters();
-    auto buffers = simulator.named_buffers();
-    for (const auto& [name, sizes] : expected) {
-      const torch::Tensor* t = params.find(name);
-      if (!t) t = buffers.find(name);
-      if (!t || t->sizes().vec() != sizes)
-        throw InputError(path + ": checkpoint tensor '" + name +
-                         "' has another shape than this model's (config and checkpoint differ)");
-    }
   } catch (const c10::Error& e) {
     std::string what = e.what_without_backtrace();
-    if (what.size() > 300) what = what.substr(0, 300) + "...";
-    throw InputError(path + ": checkpoint does not match this model or is corrupt (" + what + ")");
+    throw InputError(path + ": checkpoint lacks training state (" +
+                     what.substr(0, what.find('\n')) + ")");
   }
   return info;
 }
