@@ -1,0 +1,120 @@
+// Scenes: one typed struct per concern (background mesh, bodies, boundaries, solver, output),
+// read strictly from JSON (unknown or missing keys and impossible values are an InputError naming
+// the file and key) and built into solver input with gmsh. A dataset generator samples parameters
+// by editing the JSON (e.g. through apply_override) and calling parse_scene again.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+#include "core/mesh.hpp"
+#include "data/mpm/solver.hpp"
+
+namespace bsms::mpm {
+
+struct BackgroundSpec {
+  std::string type;              // "box" | "ball" (disk/sphere; group "wall"), built with gmsh,
+                                 // or "mesh" (read from `path`; groups = its physical groups)
+  std::string path;              // mesh: .msh (relative to the scene file)
+  std::vector<double> min, max;  // box corners, m [dim]
+  double element_size = 0.0;     // box: target edge length, m
+  bool structured = false;       // box: transfinite (regular) triangulation
+  double rotation_deg = 0.0;     // box: rotation about `rotation_center` (about z in 3D)
+  std::vector<double> rotation_center;  // default: box centre
+  // box (2D, unstructured): segments [x0, y0, x1, y1] (m, after rotation) the mesh must conform
+  // to, e.g. a clamped face that should carry nodes whatever the mesh rotation.
+  std::vector<std::vector<double>> embedded_lines;
+  std::vector<double> center;  // ball centre, m [dim]
+  double radius = 0.0;         // ball radius, m
+  bool extra_layer = true;     // extrude one outer element layer (needed by UMLS at walls)
+};
+
+struct ShapeSpec {
+  std::string type;              // "box" | "disk" (2D) | "sphere" (3D) | "mesh"
+  std::vector<double> min, max;  // box
+  std::vector<double> center;    // disk, sphere
+  double radius = 0.0;           // disk, sphere
+  std::string path;              // mesh
+};
+
+// Initial velocity field v(x), m/s.
+struct VelocitySpec {
+  std::string type = "uniform";  // "uniform" | "halves" | "sine" | "rotation"
+  std::vector<double> value;     // uniform
+  int axis = 0;                  // halves, sine: coordinate axis
+  double split = 0.0;            // halves: x[axis] < split gets `below`, else `above`
+  std::vector<double> below, above;
+  std::vector<double> amplitude;  // sine: amplitude * sin(wavenumber * (x[axis] - origin))
+  double wavenumber = 0.0, origin = 0.0;
+  std::vector<double> center;     // rotation: rigid rotation about center (z axis in 3D)
+  double angular_velocity = 0.0;  // rad/s
+};
+
+struct BodySpec {
+  std::string name;
+  ShapeSpec shape;
+  double spacing = 0.0;    // particle spacing (body mesh edge length), m
+  bool structured = true;  // box bodies: regular particle lattice
+  // "nodes": particles at the body mesh nodes with lumped volumes (half volumes on faces);
+  // "cell_centres" (box only): particles at the centres of a lattice of cells of size `spacing`,
+  // each with volume spacing^dim; the body mesh is the structured mesh through those centres.
+  std::string sampling = "nodes";
+  Material material;
+  VelocitySpec velocity;
+  double initial_stretch = 1.0;  // initial F = stretch * I (stored elastic energy)
+};
+
+struct BoundarySpec {
+  std::string group;  // physical group of the background (box: left/right/bottom/top/back/front)
+  // or a half-space: nodes with (x - point)·normal >= 0, all constrained directly (no ghosts)
+  std::vector<double> point, normal;
+  BoundaryType type = BoundaryType::kFixed;
+};
+
+struct SolverSpec {
+  KernelType kernel = KernelType::kUmls;
+  Transfer transfer = Transfer::kApic;
+  double cfl = 0.3;
+  double dt = 0.0;  // > 0: fixed time step, s
+  double flip_ratio = 1.0;
+  double end_time = 1.0;  // s
+};
+
+struct OutputSpec {
+  int frames = 101;  // frames written, t = 0 and end_time included
+  std::vector<std::string> fields{"velocity", "stress"};  // optional fields besides position
+};
+
+struct Scene {
+  std::string file;  // for messages and relative paths
+  Json source;       // the resolved JSON (written next to outputs)
+  int dim = 2;
+  BackgroundSpec background;
+  std::vector<BodySpec> bodies;
+  std::vector<BoundarySpec> boundaries;
+  std::vector<double> gravity;  // m/s² [dim]
+  SolverSpec solver;
+  OutputSpec output;
+};
+
+Scene parse_scene(const Json& json, const std::string& file);
+// Loads a scene file and applies `--set key.path=value` overrides before parsing.
+Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
+
+template <int Dim>
+struct BuiltScene {
+  BackgroundMesh<Dim> background;
+  std::vector<Material> materials;  // one per body
+  Particles<Dim> particles;
+  std::vector<Mesh> body_meshes;  // particles of body b are the nodes of body_meshes[b], in order
+  std::vector<NodeConstraint<Dim>> constraints;
+  SolverSettings<Dim> settings;
+};
+
+// Meshes the background and the bodies with gmsh and seeds particles at body mesh nodes with
+// lumped volumes. InputError if a body lies outside the background or a group is unknown.
+template <int Dim>
+BuiltScene<Dim> build_scene(const Scene& scene);
+
+}  // namespace bsms::mpm

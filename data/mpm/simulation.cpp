@@ -1,0 +1,197 @@
+#include "data/mpm/simulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+#include "core/runtime.hpp"
+
+namespace bsms::mpm {
+
+std::string SimulationSummary::summary_line() const {
+  std::ostringstream s;
+  s.precision(4);
+  s << steps << " steps, " << particles << " particles, " << frames << " frames in " << wall_s
+    << " s (" << particle_steps_per_s / 1e6 << " M particle-steps/s); energy " << energy_initial
+    << " -> " << energy_final << " J (drift " << energy_drift * 100.0 << " %), momentum drift "
+    << momentum_drift;
+  return s.str();
+}
+
+namespace {
+
+template <int Dim>
+struct FrameRecorder {
+  std::vector<double> time;
+  std::vector<float> position, velocity, stress;
+  std::vector<double> energy, momentum, angular;
+  bool with_velocity = true, with_stress = true;
+
+  void record(const MpmSolver<Dim>& solver) {
+    const Particles<Dim>& p = solver.particles();
+    time.push_back(solver.time());
+    for (int32_t i = 0; i < p.size(); ++i)
+      for (int a = 0; a < Dim; ++a) {
+        position.push_back(static_cast<float>(p.x[i][a]));
+        if (with_velocity) velocity.push_back(static_cast<float>(p.v[i][a]));
+      }
+    if (with_stress)
+      for (double s : solver.von_mises_stress()) stress.push_back(static_cast<float>(s));
+    const Diagnostics<Dim> d = solver.diagnostics();
+    energy.insert(energy.end(), {d.kinetic, d.elastic, d.gravitational});
+    for (int a = 0; a < Dim; ++a) momentum.push_back(d.momentum[a]);
+    for (int a = 0; a < Diagnostics<Dim>::kAngular; ++a) angular.push_back(d.angular[a]);
+    for (float x : position)
+      if (!std::isfinite(x))
+        throw NumericalError("non-finite position at t = " + std::to_string(solver.time()));
+  }
+};
+
+std::string hyperslab(int64_t frame, int64_t frames, int64_t particles, int comps,
+                      const std::string& dataset) {
+  std::ostringstream s;
+  const std::string dims = comps > 0 ? std::to_string(particles) + " " + std::to_string(comps)
+                                     : std::to_string(particles);
+  const std::string full = std::to_string(frames) + " " + dims;
+  s << "        <DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << "\">\n";
+  if (comps > 0) {
+    s << "          <DataItem Dimensions=\"3 3\" Format=\"XML\">" << frame << " 0 0 1 1 1 1 "
+      << particles << " " << comps << "</DataItem>\n";
+  } else {
+    s << "          <DataItem Dimensions=\"3 2\" Format=\"XML\">" << frame << " 0 1 1 1 "
+      << particles << "</DataItem>\n";
+  }
+  s << "          <DataItem Dimensions=\"" << full
+    << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">frames.h5:" << dataset
+    << "</DataItem>\n        </DataItem>\n";
+  return s.str();
+}
+
+template <int Dim>
+void write_xdmf(const std::string& path, const FrameRecorder<Dim>& rec, int64_t particles) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path());
+    const int64_t frames = static_cast<int64_t>(rec.time.size());
+    f << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
+      << "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    for (int64_t t = 0; t < frames; ++t) {
+      f.precision(17);
+      f << "      <Grid Name=\"frame_" << t << "\" GridType=\"Uniform\">\n"
+        << "        <Time Value=\"" << rec.time[t] << "\"/>\n"
+        << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << particles
+        << "\" NodesPerElement=\"1\"/>\n"
+        << "        <Geometry GeometryType=\"" << (Dim == 2 ? "XY" : "XYZ") << "\">\n"
+        << hyperslab(t, frames, particles, Dim, "/frames/position") << "        </Geometry>\n";
+      if (rec.with_velocity)
+        f << "        <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">\n"
+          << hyperslab(t, frames, particles, Dim, "/frames/velocity") << "        </Attribute>\n";
+      if (rec.with_stress)
+        f << "        <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Node\">\n"
+          << hyperslab(t, frames, particles, 0, "/frames/stress") << "        </Attribute>\n";
+      f << "        <Attribute Name=\"mass\" AttributeType=\"Scalar\" Center=\"Node\">\n"
+        << "          <DataItem Dimensions=\"" << particles
+        << "\" NumberType=\"Float\" Precision=\"8\" "
+           "Format=\"HDF\">frames.h5:/particles/mass</DataItem>\n"
+        << "        </Attribute>\n      </Grid>\n";
+    }
+    f << "    </Grid>\n  </Domain>\n</Xdmf>\n";
+    if (!f) throw IoError(out.temp_path() + ": write failed");
+  }
+  out.commit();
+}
+
+template <int Dim>
+SimulationSummary run(const Scene& scene, const std::string& out_dir, bool progress) {
+  BuiltScene<Dim> built = build_scene<Dim>(scene);
+  const std::vector<double> mass = built.particles.mass, volume0 = built.particles.volume0;
+  MpmSolver<Dim> solver(std::move(built.background), std::move(built.materials),
+                        std::move(built.particles), std::move(built.constraints), built.settings);
+  FrameRecorder<Dim> rec;
+  const auto& fields = scene.output.fields;
+  rec.with_velocity = std::find(fields.begin(), fields.end(), "velocity") != fields.end();
+  rec.with_stress = std::find(fields.begin(), fields.end(), "stress") != fields.end();
+  rec.record(solver);
+  const Diagnostics<Dim> d0 = solver.diagnostics();
+  double kinetic_max = d0.kinetic, speed_max = 0.0;  // Σ m |v|, the scale of momentum drift
+  auto track_speed = [&] {
+    double sum = 0.0;
+    for (int32_t p = 0; p < solver.particles().size(); ++p)
+      sum += mass[p] * solver.particles().v[p].norm();
+    speed_max = std::max(speed_max, sum);
+  };
+  track_speed();
+
+  const int frames = scene.output.frames;
+  std::unique_ptr<ProgressBar> bar;
+  if (progress) bar = std::make_unique<ProgressBar>("simulate", frames - 1);
+  Stopwatch clock;
+  for (int k = 1; k < frames; ++k) {
+    solver.advance_to(scene.solver.end_time * k / (frames - 1));
+    rec.record(solver);
+    kinetic_max = std::max(kinetic_max, solver.diagnostics().kinetic);
+    track_speed();
+    if (bar) bar->update(k, std::to_string(solver.steps()) + " steps");
+  }
+  SimulationSummary s;
+  s.wall_s = clock.seconds();
+  if (bar) bar->finish();
+  const Diagnostics<Dim> d1 = solver.diagnostics();
+  s.steps = solver.steps();
+  s.particles = solver.particles().size();
+  s.frames = frames;
+  s.particle_steps_per_s = static_cast<double>(s.steps) * s.particles / std::max(s.wall_s, 1e-9);
+  s.energy_initial = d0.kinetic + d0.elastic + d0.gravitational;
+  s.energy_final = d1.kinetic + d1.elastic + d1.gravitational;
+  s.energy_drift = std::abs(s.energy_final - s.energy_initial) /
+                   std::max({std::abs(s.energy_initial), kinetic_max, 1e-300});
+  s.momentum_drift = (d1.momentum - d0.momentum).norm() / std::max(speed_max, 1e-300);
+
+  std::filesystem::create_directories(out_dir);
+  const std::string h5_path = (std::filesystem::path(out_dir) / "frames.h5").string();
+  AtomicOutput out(h5_path);
+  {
+    H5File f(out.temp_path(), H5File::Mode::kTruncate);
+    const hsize_t T = rec.time.size(), P = static_cast<hsize_t>(s.particles);
+    f.set_attr("/", "format", std::string("bsms-frames"));
+    f.set_attr("/", "version", static_cast<int64_t>(1));
+    f.set_attr("/", "scene", scene.source.dump());
+    f.set_attr("/", "dim", static_cast<int64_t>(Dim));
+    f.set_attr("/", "kernel", to_string(scene.solver.kernel));
+    f.set_attr("/", "transfer", to_string(scene.solver.transfer));
+    f.write<double>("/particles/mass", mass, {P});
+    f.write<double>("/particles/volume0", volume0, {P});
+    f.write<double>("/frames/time", rec.time, {T});
+    f.write<float>("/frames/position", rec.position, {T, P, Dim}, 1);
+    if (rec.with_velocity) f.write<float>("/frames/velocity", rec.velocity, {T, P, Dim}, 1);
+    if (rec.with_stress) f.write<float>("/frames/stress", rec.stress, {T, P}, 1);
+    f.write<double>("/frames/energy", rec.energy, {T, 3});
+    f.write<double>("/frames/momentum", rec.momentum, {T, Dim});
+    f.write<double>("/frames/angular_momentum", rec.angular,
+                    {T, static_cast<hsize_t>(Diagnostics<Dim>::kAngular)});
+    f.close();
+  }
+  out.commit();
+  write_xdmf<Dim>((std::filesystem::path(out_dir) / "frames.xdmf").string(), rec, s.particles);
+  AtomicOutput resolved((std::filesystem::path(out_dir) / "scene.json").string());
+  {
+    std::ofstream f(resolved.temp_path());
+    f << scene.source.dump(2) << "\n";
+    if (!f) throw IoError(resolved.temp_path() + ": write failed");
+  }
+  resolved.commit();
+  return s;
+}
+
+}  // namespace
+
+SimulationSummary simulate_scene(const Scene& scene, const std::string& out_dir, bool progress) {
+  return scene.dim == 2 ? run<2>(scene, out_dir, progress) : run<3>(scene, out_dir, progress);
+}
+
+}  // namespace bsms::mpm

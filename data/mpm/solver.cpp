@@ -1,0 +1,401 @@
+#include "data/mpm/solver.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace bsms::mpm {
+
+std::string to_string(Transfer transfer) {
+  return transfer == Transfer::kApic ? "apic" : "flip";
+}
+
+Transfer parse_transfer(const std::string& name, const std::string& where) {
+  if (name == "apic") return Transfer::kApic;
+  if (name == "flip") return Transfer::kFlip;
+  throw InputError(where + ": unknown transfer '" + name + "' (allowed: apic, flip)");
+}
+
+std::string to_string(BoundaryType type) {
+  switch (type) {
+    case BoundaryType::kFixed:
+      return "fixed";
+    case BoundaryType::kRoller:
+      return "roller";
+    case BoundaryType::kSlip:
+      return "slip";
+  }
+  return "unknown";
+}
+
+BoundaryType parse_boundary_type(const std::string& name, const std::string& where) {
+  for (BoundaryType t : {BoundaryType::kFixed, BoundaryType::kRoller, BoundaryType::kSlip})
+    if (to_string(t) == name) return t;
+  throw InputError(where + ": unknown boundary type '" + name + "' (allowed: fixed, roller, slip)");
+}
+
+template <int Dim>
+void Particles<Dim>::resize(int32_t n) {
+  x.resize(n, Vec<Dim>::Zero());
+  v.resize(n, Vec<Dim>::Zero());
+  F.resize(n, Mat<Dim>::Identity());
+  B.resize(n, Mat<Dim>::Zero());
+  mass.resize(n, 0.0);
+  volume0.resize(n, 0.0);
+  material.resize(n, 0);
+  body.resize(n, 0);
+}
+
+namespace {
+
+// First failure found by any thread: the lowest particle index wins (deterministic message).
+struct Failure {
+  int32_t particle = INT_MAX;
+  std::string cause;
+  void record(int32_t p, std::string why) {
+#pragma omp critical(bsms_mpm_failure)
+    if (p < particle) {
+      particle = p;
+      cause = std::move(why);
+    }
+  }
+  bool failed() const {
+    return particle != INT_MAX;
+  }
+};
+
+template <int Dim>
+std::string format_vec(const Vec<Dim>& x) {
+  std::ostringstream s;
+  s.precision(6);
+  s << "(";
+  for (int a = 0; a < Dim; ++a) s << (a ? ", " : "") << x[a];
+  s << ")";
+  return s.str();
+}
+
+template <int Dim>
+bool all_finite(const Vec<Dim>& x) {
+  return x.allFinite();
+}
+
+}  // namespace
+
+template <int Dim>
+MpmSolver<Dim>::MpmSolver(BackgroundMesh<Dim> background, std::vector<Material> materials,
+                          Particles<Dim> particles, std::vector<NodeConstraint<Dim>> constraints,
+                          SolverSettings<Dim> settings)
+    : bg_(std::move(background)),
+      kernel_(settings.kernel, bg_),
+      materials_(std::move(materials)),
+      particles_(std::move(particles)),
+      settings_(settings) {
+  const int32_t n = bg_.num_nodes();
+  constraint_offsets_.assign(n + 1, 0);
+  for (const auto& c : constraints) {
+    if (c.node < 0 || c.node >= n)
+      throw InputError("boundary constraint on a node outside the background");
+    // Ghosts are first constrained like wall nodes, so a mirror that reads a ghost sees a
+    // constrained value, then overwritten by their mirror image.
+    if (c.mirror_count > 0) ghosts_.push_back(c);
+    ++constraint_offsets_[c.node + 1];
+  }
+  for (int32_t i = 0; i < n; ++i) constraint_offsets_[i + 1] += constraint_offsets_[i];
+  constraints_.resize(constraint_offsets_[n]);
+  std::vector<int32_t> fill(constraint_offsets_.begin(), constraint_offsets_.end() - 1);
+  for (const auto& c : constraints) constraints_[fill[c.node]++] = c;
+  for (const auto& m : materials_) max_wave_speed_ = std::max(max_wave_speed_, m.wave_speed());
+
+  const int32_t P = particles_.size();
+  cell_.assign(P, -1);
+  bary_.assign(P, Eigen::Matrix<double, Dim + 1, 1>::Zero());
+  sigma_.assign(P, Mat<Dim>::Zero());
+  psi_.assign(P, 0.0);
+  entry_offsets_.assign(P + 1, 0);
+  entry_counts_.assign(P, 0);
+  grid_mass_.assign(n, 0.0);
+  grid_v_.assign(n, Vec<Dim>::Zero());
+  grid_v_new_.assign(n, Vec<Dim>::Zero());
+  ghost_v_.assign(ghosts_.size(), Vec<Dim>::Zero());
+  ghost_v_new_.assign(ghosts_.size(), Vec<Dim>::Zero());
+  for (int32_t p = 0; p < P; ++p) {
+    if (particles_.material[p] < 0 ||
+        particles_.material[p] >= static_cast<int32_t>(materials_.size()))
+      throw InputError("particle " + std::to_string(p) + " has no material");
+    if (particles_.F[p].determinant() <= 0.0) fail(p, "initial deformation gradient has J <= 0");
+    update_stress(p);
+    Eigen::Matrix<double, Dim + 1, 1> bary;
+    if (!bg_.grid) cell_[p] = bg_.locate(particles_.x[p], -1, bary);
+  }
+}
+
+template <int Dim>
+void MpmSolver<Dim>::fail(int32_t particle, const std::string& cause) const {
+  throw NumericalError("step " + std::to_string(steps_ + 1) + " (t = " + std::to_string(time_) +
+                       " s), particle " + std::to_string(particle) + ": " + cause);
+}
+
+template <int Dim>
+void MpmSolver<Dim>::update_stress(int32_t p) {
+  const Material& m = materials_[particles_.material[p]];
+  elastic_response<Dim>(m, particles_.F[p], sigma_[p], psi_[p]);
+}
+
+template <int Dim>
+std::vector<double> MpmSolver<Dim>::von_mises_stress() const {
+  std::vector<double> out(particles_.size());
+  for (int32_t p = 0; p < particles_.size(); ++p) out[p] = von_mises<Dim>(sigma_[p]);
+  return out;
+}
+
+template <int Dim>
+double MpmSolver<Dim>::stable_dt() const {
+  if (settings_.fixed_dt > 0.0) return settings_.fixed_dt;
+  double vmax = 0.0;
+  const int32_t P = particles_.size();
+#pragma omp parallel for reduction(max : vmax) schedule(static)
+  for (int32_t p = 0; p < P; ++p) vmax = std::max(vmax, particles_.v[p].norm());
+  return settings_.cfl * kernel_.cfl_spacing() / (max_wave_speed_ + vmax);
+}
+
+template <int Dim>
+void MpmSolver<Dim>::advance_to(double t) {
+  while (time_ < t) {
+    double dt = stable_dt();
+    const double remaining = t - time_;
+    if (dt >= remaining * (1.0 - 1e-9)) {
+      dt = remaining;
+    } else if (dt > 0.5 * remaining) {
+      dt = 0.5 * remaining;  // two even steps instead of one full and one sliver
+    }
+    step(dt);
+    if (dt == remaining) time_ = t;
+  }
+}
+
+template <int Dim>
+void MpmSolver<Dim>::step(double dt) {
+  const int32_t P = particles_.size();
+  const int32_t N = bg_.num_nodes();
+  const bool apic = settings_.transfer == Transfer::kApic;
+  Failure failure;
+
+  // 1. Locate particles and size their kernel slots (upper bound: the cell's stencil).
+  const bool simplicial = !bg_.grid;
+  const bool per_cell =
+      kernel_.type() == KernelType::kUmls || kernel_.type() == KernelType::kUmlsNoEta;
+#pragma omp parallel for schedule(static)
+  for (int32_t p = 0; p < P; ++p) {
+    int64_t bound = kernel_.max_entries();
+    if (simplicial) {
+      const int32_t c = bg_.locate(particles_.x[p], cell_[p], bary_[p]);
+      if (c < 0) {
+        failure.record(p, "left the background mesh at " + format_vec<Dim>(particles_.x[p]));
+        bound = 0;
+      } else {
+        cell_[p] = c;
+        if (per_cell) bound = bg_.stencil_offsets[c + 1] - bg_.stencil_offsets[c];
+      }
+    }
+    entry_offsets_[p + 1] = bound;
+  }
+  if (failure.failed()) fail(failure.particle, failure.cause);
+  for (int32_t p = 0; p < P; ++p) entry_offsets_[p + 1] += entry_offsets_[p];
+  if (static_cast<int64_t>(entries_.size()) < entry_offsets_[P]) entries_.resize(entry_offsets_[P]);
+
+  // 2. Kernel evaluation and P2G into per-thread buffers (no races), then a reduction over nodes.
+  constexpr int kStride = 1 + 2 * Dim;  // mass, momentum, force
+  const int threads = omp_get_max_threads();
+  if (static_cast<int64_t>(scatter_.size()) < static_cast<int64_t>(threads) * N * kStride)
+    scatter_.resize(static_cast<size_t>(threads) * N * kStride);
+#pragma omp parallel num_threads(threads)
+  {
+    const int tid = omp_get_thread_num();
+    double* buf = scatter_.data() + static_cast<size_t>(tid) * N * kStride;
+    std::fill(buf, buf + static_cast<size_t>(N) * kStride, 0.0);
+#pragma omp for schedule(static)
+    for (int32_t p = 0; p < P; ++p) {
+      KernelEntry<Dim>* e = entries_.data() + entry_offsets_[p];
+      const Vec<Dim>& xp = particles_.x[p];
+      const int n = simplicial ? kernel_.evaluate_in_cell(xp, cell_[p], bary_[p], e)
+                               : kernel_.evaluate(xp, cell_[p], e);
+      if (n < 0) {
+        failure.record(p, n == kOutsideMesh
+                              ? "left the background mesh at " + format_vec<Dim>(xp)
+                              : "degenerate kernel samples (singular MLS moment matrix) at " +
+                                    format_vec<Dim>(xp));
+        entry_counts_[p] = 0;
+        continue;
+      }
+      entry_counts_[p] = n;
+      const double mp = particles_.mass[p];
+      const Mat<Dim> stress_volume =
+          sigma_[p] * (particles_.volume0[p] * particles_.F[p].determinant());
+      Mat<Dim> affine = Mat<Dim>::Zero();
+      if (apic) {
+        Mat<Dim> D = Mat<Dim>::Zero();
+        for (int i = 0; i < n; ++i) {
+          const Vec<Dim> r = bg_.points[e[i].node] - xp;
+          D.noalias() += e[i].w * r * r.transpose();
+        }
+        // D is invertible for UMLS and B-splines; linear FEM makes it singular on cell edges,
+        // where the affine term is dropped.
+        Mat<Dim> D_inv;
+        bool invertible;
+        D.computeInverseWithCheck(D_inv, invertible, 1e-14 * D.trace() * D.trace());
+        if (invertible) affine = particles_.B[p] * D_inv;
+      }
+      const Vec<Dim> gravity_force = mp * settings_.gravity;
+      for (int i = 0; i < n; ++i) {
+        double* node = buf + static_cast<size_t>(e[i].node) * kStride;
+        const double wm = e[i].w * mp;
+        Vec<Dim> momentum = particles_.v[p];
+        if (apic) momentum.noalias() += affine * (bg_.points[e[i].node] - xp);
+        const Vec<Dim> force = e[i].w * gravity_force - stress_volume * e[i].grad;
+        node[0] += wm;
+        for (int a = 0; a < Dim; ++a) {
+          node[1 + a] += wm * momentum[a];
+          node[1 + Dim + a] += force[a];
+        }
+      }
+    }
+    // Reduction and grid update (symplectic Euler + constraints), parallel over nodes.
+#pragma omp for schedule(static)
+    for (int32_t i = 0; i < N; ++i) {
+      double acc[kStride];
+      for (int k = 0; k < kStride; ++k) acc[k] = scatter_[static_cast<size_t>(i) * kStride + k];
+      for (int t = 1; t < threads; ++t)
+        for (int k = 0; k < kStride; ++k)
+          acc[k] += scatter_[(static_cast<size_t>(t) * N + i) * kStride + k];
+      grid_mass_[i] = acc[0];
+      if (!(acc[0] > 0.0)) {  // empty, or cancelled by negative MLS weights
+        grid_v_[i].setZero();
+        grid_v_new_[i].setZero();
+        continue;
+      }
+      Vec<Dim> v, f;
+      const double m_eff = acc[0];
+      for (int a = 0; a < Dim; ++a) {
+        v[a] = acc[1 + a] / m_eff;
+        f[a] = acc[1 + Dim + a];
+      }
+      Vec<Dim> vn = v + dt / m_eff * f;
+      for (int32_t c = constraint_offsets_[i]; c < constraint_offsets_[i + 1]; ++c) {
+        const NodeConstraint<Dim>& con = constraints_[c];
+        const double nn = con.normal.squaredNorm();
+        if (con.type == BoundaryType::kFixed || nn == 0.0) {
+          vn.setZero();
+        } else {
+          const double vdot = vn.dot(con.normal);
+          if (con.type == BoundaryType::kRoller || vdot > 0.0) vn -= vdot / nn * con.normal;
+        }
+      }
+      grid_v_[i] = v;
+      grid_v_new_[i] = vn;
+    }
+    // Ghost nodes mirror the (already constrained) velocities at their reflected points.
+#pragma omp for schedule(static)
+    for (size_t g = 0; g < ghosts_.size(); ++g) {
+      const NodeConstraint<Dim>& con = ghosts_[g];
+      Vec<Dim> vm = Vec<Dim>::Zero(), vo = Vec<Dim>::Zero();
+      for (int k = 0; k < con.mirror_count; ++k) {
+        vm += con.mirror_weights[k] * grid_v_new_[con.mirror_nodes[k]];
+        vo += con.mirror_weights[k] * grid_v_[con.mirror_nodes[k]];
+      }
+      const double nn = con.normal.squaredNorm();
+      auto reflect = [&](const Vec<Dim>& v) -> Vec<Dim> {
+        if (con.type == BoundaryType::kFixed || nn == 0.0) return -v;
+        const double vdot = v.dot(con.normal);
+        if (con.type == BoundaryType::kSlip && vdot <= 0.0) return v;
+        return v - 2.0 * vdot / nn * con.normal;
+      };
+      ghost_v_[g] = reflect(vo);
+      ghost_v_new_[g] = reflect(vm);
+    }
+#pragma omp for schedule(static)
+    for (size_t g = 0; g < ghosts_.size(); ++g) {
+      grid_v_[ghosts_[g].node] = ghost_v_[g];
+      grid_v_new_[ghosts_[g].node] = ghost_v_new_[g];
+    }
+  }
+  if (failure.failed()) fail(failure.particle, failure.cause);
+
+  // 3. G2P, deformation update, checks and stresses.
+  const double flip = settings_.flip_ratio;
+#pragma omp parallel for schedule(static)
+  for (int32_t p = 0; p < P; ++p) {
+    const KernelEntry<Dim>* e = entries_.data() + entry_offsets_[p];
+    const int n = entry_counts_[p];
+    const Vec<Dim> xp = particles_.x[p];
+    Vec<Dim> v_pic = Vec<Dim>::Zero(), dv = Vec<Dim>::Zero();
+    Mat<Dim> grad_v = Mat<Dim>::Zero(), B = Mat<Dim>::Zero();
+    for (int i = 0; i < n; ++i) {
+      const Vec<Dim>& vi = grid_v_new_[e[i].node];
+      v_pic.noalias() += e[i].w * vi;
+      grad_v.noalias() += vi * e[i].grad.transpose();
+      if (apic) {
+        B.noalias() += e[i].w * vi * (bg_.points[e[i].node] - xp).transpose();
+      } else {
+        dv.noalias() += e[i].w * (vi - grid_v_[e[i].node]);
+      }
+    }
+    if (apic) {
+      particles_.v[p] = v_pic;
+      particles_.B[p] = B;
+    } else {
+      particles_.v[p] = flip * (particles_.v[p] + dv) + (1.0 - flip) * v_pic;
+    }
+    particles_.x[p] = xp + dt * v_pic;
+    const Mat<Dim> F = (Mat<Dim>::Identity() + dt * grad_v) * particles_.F[p];
+    particles_.F[p] = F;
+    const double J = F.determinant();
+    if (!all_finite<Dim>(particles_.x[p]) || !all_finite<Dim>(particles_.v[p]) || !F.allFinite()) {
+      failure.record(p, "NaN or infinite state (position, velocity or deformation gradient)");
+      continue;
+    }
+    if (!(J > 0.0)) {
+      failure.record(p, "inverted (J = " + std::to_string(J) + " <= 0)");
+      continue;
+    }
+    update_stress(p);
+    if (!sigma_[p].allFinite()) failure.record(p, "NaN stress");
+  }
+  if (failure.failed()) fail(failure.particle, failure.cause);
+  time_ += dt;
+  ++steps_;
+}
+
+template <int Dim>
+Diagnostics<Dim> MpmSolver<Dim>::diagnostics() const {
+  Diagnostics<Dim> d;
+  for (int32_t p = 0; p < particles_.size(); ++p) {
+    const double m = particles_.mass[p];
+    const Vec<Dim>& x = particles_.x[p];
+    const Vec<Dim>& v = particles_.v[p];
+    const Mat<Dim>& B = particles_.B[p];
+    d.kinetic += 0.5 * m * v.squaredNorm();
+    d.elastic += particles_.volume0[p] * psi_[p];
+    d.gravitational -= m * settings_.gravity.dot(x);
+    d.momentum += m * v;
+    if constexpr (Dim == 2) {
+      d.angular[0] += m * (x[0] * v[1] - x[1] * v[0] + B(1, 0) - B(0, 1));
+    } else {
+      const Vec<3> lin = x.cross(v);
+      const Vec<3> aff(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
+      d.angular += m * (lin + aff);
+    }
+  }
+  return d;
+}
+
+template struct Particles<2>;
+template struct Particles<3>;
+template class MpmSolver<2>;
+template class MpmSolver<3>;
+
+}  // namespace bsms::mpm
