@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# The end-to-end demo on the default geometry. Usage: scripts/demo.sh BUILD_DIR OUT_DIR
-# Stage 1 (now): mesh configs/geometry/plate_with_holes.geo with gmsh (inside bsms) and build its
-# bi-stride multilevel graph, printing the per-level table.
+# The end-to-end demo on the default scene family (configs/scenes/disks2d.json):
+# generate a small dataset with the UMLS-MPM solver, preprocess its meshes into bi-stride
+# multilevel graphs, train BSMS-GNN and MeshGraphNets for the same wall-clock budget each, roll
+# both out on the test split and write OUT_DIR/report.md with plots.
+# Usage: scripts/demo.sh BUILD_DIR OUT_DIR   (environment: DEMO_TRAJECTORIES, DEMO_TRAIN_SECONDS,
+# DEMO_THREADS override the defaults below)
 set -euo pipefail
 
 if [[ $# -ne 2 ]]; then
@@ -13,9 +16,37 @@ out_dir=$2
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bsms=$build_dir/bsms
 [[ -x $bsms ]] || { echo "demo: $bsms not found; build first (make build)" >&2; exit 2; }
+trajectories=${DEMO_TRAJECTORIES:-30}
+train_seconds=${DEMO_TRAIN_SECONDS:-240}
+threads=${DEMO_THREADS:-0}
+data=$out_dir/data
 mkdir -p "$out_dir"
+start=$(date +%s)
+stage() { echo; echo "== [$(( $(date +%s) - start )) s] $*"; }
 
-echo "== bsms preprocess: bi-stride multilevel graph of the default plate (MinAve seeding)"
+stage "bsms preprocess: bi-stride multilevel graph of the plate with holes (MinAve seeding)"
 "$bsms" preprocess --mesh "$root/configs/geometry/plate_with_holes.geo" \
-  --out "$out_dir/plate_multilevel.h5" --seeding minave --levels auto
-echo "demo: wrote $out_dir/plate_multilevel.h5"
+  --out "$out_dir/plate_multilevel.h5" --seeding minave --levels auto --threads "$threads"
+
+stage "bsms generate: $trajectories disks2d trajectories (80:10:10) with UMLS-MPM"
+"$bsms" generate "$root/configs/scenes/disks2d.json" --out "$data" \
+  --trajectories "$trajectories" --split 80:10:10 --seed 0 --threads "$threads"
+"$bsms" info "$data/train.h5"
+
+stage "bsms preprocess --data: multilevel graphs of every mesh in the dataset"
+"$bsms" preprocess --data "$data" --seeding minave --levels auto --threads "$threads"
+
+for model in bsms mgn; do
+  stage "bsms train: $model for ${train_seconds} s"
+  run=$out_dir/$model
+  rm -rf "$run"
+  "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
+    --set "data=$data" --set "time_budget_s=$train_seconds" --set steps=5000 --set valid_every=250
+  stage "bsms rollout: $model on the test split"
+  "$bsms" rollout "$run" --split test --threads "$threads"
+done
+
+stage "bsms report"
+"$bsms" report "$out_dir/bsms" "$out_dir/mgn" --out "$out_dir" \
+  --title "bsms demo: BSMS-GNN and MeshGraphNets on disks2d ($trajectories trajectories, ${train_seconds} s of training each)"
+stage "done: $out_dir/report.md"

@@ -1,0 +1,90 @@
+// Scene families for dataset generation: a base scene (the JSON of configs/scenes/*.json, inline
+// under "scene") plus a "sample" section of parameter ranges. A family-specific sampler turns a
+// seeded random stream into one concrete scene per trajectory (bodies, sizes, positions,
+// velocities, materials, gravity). Families: "disks", "press", "cantilever", "union".
+//
+// Family file (strict; unknown keys, min > max and non-positive sizes are InputErrors):
+//   {"family": "disks", "scene": {...}, "frames": 50, "frame_dt": 0.03,
+//    "fields": ["velocity"], "sample": {...family keys...}}
+// A range is a number (fixed) or [min, max] (uniform); an integer range is sampled inclusively.
+// Sample keys (lengths m, speeds m/s, angles degrees, accelerations m/s², materials as in scenes
+// with a range per numeric parameter):
+//   disks       count, radius, spacing, speed, gap, aim_jitter_deg, material, gravity (per axis)
+//   press       plate_width, plate_thickness, plate_spacing, plate_material, actuator_radius,
+//               actuator_spacing, actuator_speed, actuator_offset (share of the plate half-width),
+//               actuator_gap, actuator_material
+//   cantilever  length, thickness, spacing, material, load, load_angle_deg (0 = down)
+//   union       arm_length, arm_width, gap, base_height, disks, disk_radius, rotation_deg,
+//               spacing, speed, clearance, material, gravity (per axis)
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+
+namespace bsms::generate {
+
+// splitmix64: portable, so a draw is identical on every platform and standard library.
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) : state_(seed) {}
+  uint64_t next();
+  double uniform();                         // [0, 1)
+  double uniform(double lo, double hi);     // [lo, hi); lo when lo == hi
+  int64_t integer(int64_t lo, int64_t hi);  // [lo, hi], inclusive
+ private:
+  uint64_t state_;
+};
+
+// Seed of global trajectory `index` at draw `attempt` (0 first, +1 per unstable redraw) of a run
+// with seed `seed`. Non-negative, stored in the dataset; Rng(trajectory_seed(...)) redraws it.
+int64_t trajectory_seed(int64_t seed, int64_t index, int attempt);
+
+struct Range {
+  double min = 0.0, max = 0.0;
+  double sample(Rng& rng) const { return rng.uniform(min, max); }
+};
+
+// Node classification rule: nodes with (x − point)·normal ≥ −tolerance are fixed (node_type 1).
+struct FixedPlane {
+  std::vector<double> point, normal;  // m [dim], unit normal
+  double tolerance = 1e-9;            // m
+};
+
+// One concrete scene drawn from a family.
+struct SampledScene {
+  Json scene;                        // a complete scene JSON (parse_scene accepts it)
+  Json parameters;                   // the sampled values, for the dataset's parameters attribute
+  std::vector<FixedPlane> fixed;     // node_type 1 rules
+  std::vector<int> actuator_bodies;  // bodies whose nodes get node_type 2
+  std::vector<std::string> work_files;  // files written for this draw (removed after building)
+};
+
+class SceneSampler {
+ public:
+  virtual ~SceneSampler() = default;
+  // Draws a scene from `rng`. Files the scene needs (e.g. gmsh geometry) are written with the
+  // path prefix `work_prefix` and listed in work_files. InputError when the ranges cannot be met.
+  virtual SampledScene sample(Rng& rng, const std::string& work_prefix) const = 0;
+};
+
+struct FamilyConfig {
+  std::string file;    // for messages
+  Json source;         // resolved JSON (after --set overrides), recorded next to outputs
+  std::string family;  // "disks" | "press" | "cantilever" | "union"
+  int dim = 2;
+  int frames = 0;                   // frames stored per trajectory, t = 0 included
+  double frame_dt = 0.0;            // s between stored frames
+  std::vector<std::string> fields;  // stored besides world_pos: "velocity", "stress"
+  std::shared_ptr<const SceneSampler> sampler;
+};
+
+// Parses a family config strictly and checks it by drawing and parsing one scene.
+FamilyConfig parse_family(const Json& json, const std::string& file);
+// Loads a family file and applies `--set key.path=value` overrides before parsing.
+FamilyConfig load_family(const std::string& path, const std::vector<std::string>& overrides = {});
+
+}  // namespace bsms::generate

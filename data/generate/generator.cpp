@@ -1,0 +1,478 @@
+#include "data/generate/generator.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <unistd.h>
+
+#include "core/error.hpp"
+#include "core/hdf5_file.hpp"
+#include "core/runtime.hpp"
+#include "data/mpm/scene.hpp"
+#include "data/mpm/solver.hpp"
+
+namespace bsms::generate {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr const char* kManifest = "generate.json";
+constexpr const char* kPartsDir = ".parts";
+constexpr const char* kWorkDir = ".work";
+const char* const kSplitNames[3] = {"train", "valid", "test"};
+
+std::string part_name(int64_t index) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "traj_%06lld.h5", static_cast<long long>(index));
+  return buf;
+}
+
+std::string part_path(const std::string& dir, int64_t index) {
+  return (fs::path(dir) / kPartsDir / part_name(index)).string();
+}
+
+// Restores the calling thread's OpenMP thread count on scope exit.
+class SingleThreadedSolve {
+ public:
+  SingleThreadedSolve() : saved_(omp_get_max_threads()) { omp_set_num_threads(1); }
+  ~SingleThreadedSolve() { omp_set_num_threads(saved_); }
+  SingleThreadedSolve(const SingleThreadedSolve&) = delete;
+  SingleThreadedSolve& operator=(const SingleThreadedSolve&) = delete;
+
+ private:
+  int saved_;
+};
+
+bool node_is_fixed(const FixedPlane& plane, const double* x, int dim) {
+  double depth = 0.0;
+  for (int a = 0; a < dim; ++a) depth += (x[a] - plane.point[a]) * plane.normal[a];
+  return depth >= -plane.tolerance;
+}
+
+template <int Dim>
+Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm::Scene& scene) {
+  mpm::BuiltScene<Dim> built = mpm::build_scene<Dim>(scene);
+  Trajectory t;
+  TrajectoryMesh& m = t.mesh;
+  m.dim = Dim;
+  m.cell_size = Dim + 1;
+  int64_t offset = 0;
+  for (const Mesh& body : built.body_meshes) {
+    for (int64_t c = 0; c < body.num_cells(); ++c)
+      for (int k = 0; k <= Dim; ++k)
+        m.cells.push_back(static_cast<int32_t>(offset + body.cells(c, k)));
+    offset += body.num_nodes();
+  }
+  const mpm::Particles<Dim>& p0 = built.particles;
+  if (offset != p0.size()) throw NumericalError("body meshes and particles disagree");
+  for (int32_t i = 0; i < p0.size(); ++i) {
+    double x[Dim];
+    for (int a = 0; a < Dim; ++a) {
+      x[a] = p0.x[i][a];
+      m.mesh_pos.push_back(static_cast<float>(x[a]));
+    }
+    const int32_t body = p0.body[i];
+    NodeType type = NodeType::kNormal;
+    if (std::find(draw.actuator_bodies.begin(), draw.actuator_bodies.end(), body) !=
+        draw.actuator_bodies.end())
+      type = NodeType::kMoving;
+    for (const FixedPlane& plane : draw.fixed)
+      if (node_is_fixed(plane, x, Dim)) type = NodeType::kFixed;
+    m.node_type.push_back(static_cast<int32_t>(type));
+    m.body_id.push_back(body);
+  }
+
+  mpm::MpmSolver<Dim> solver(std::move(built.background), std::move(built.materials),
+                             std::move(built.particles), std::move(built.constraints),
+                             built.settings);
+  const bool with_velocity =
+      std::find(family.fields.begin(), family.fields.end(), "velocity") != family.fields.end();
+  const bool with_stress =
+      std::find(family.fields.begin(), family.fields.end(), "stress") != family.fields.end();
+  std::vector<float>& pos = t.fields["world_pos"];
+  std::vector<float>* vel = with_velocity ? &t.fields["velocity"] : nullptr;
+  std::vector<float>* stress = with_stress ? &t.fields["stress"] : nullptr;
+  auto record = [&] {
+    const mpm::Particles<Dim>& p = solver.particles();
+    for (int32_t i = 0; i < p.size(); ++i)
+      for (int a = 0; a < Dim; ++a) {
+        const float x = static_cast<float>(p.x[i][a]);
+        const float v = static_cast<float>(p.v[i][a]);
+        // The writer refuses NaN; a non-finite state is an unstable solve, to be redrawn.
+        if (!std::isfinite(x) || !std::isfinite(v))
+          throw NumericalError("non-finite state of particle " + std::to_string(i) +
+                               " at t = " + std::to_string(solver.time()) + " s");
+        pos.push_back(x);
+        if (vel) vel->push_back(v);
+      }
+    if (stress)
+      for (double s : solver.von_mises_stress()) stress->push_back(static_cast<float>(s));
+  };
+  record();
+  Stopwatch clock;
+  for (int k = 1; k < family.frames; ++k) {
+    solver.advance_to(family.frame_dt * k);
+    record();
+  }
+  t.solver_wall_s = clock.seconds();
+  t.num_frames = family.frames;
+  return t;
+}
+
+Json manifest(const FamilyConfig& family, int64_t trajectories, const std::array<int64_t, 3>& split,
+              int64_t seed) {
+  return {{"format", "bsms-generate"},
+          {"version", 1},
+          {"config", family.source},
+          {"dim", family.dim},
+          {"frame_dt", family.frame_dt},
+          {"trajectories", trajectories},
+          {"split", {split[0], split[1], split[2]}},
+          {"seed", seed}};
+}
+
+void write_json_atomic(const std::string& path, const Json& json) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path());
+    f << json.dump(2) << '\n';
+    if (!f) throw IoError(out.temp_path() + ": write failed");
+  }
+  out.commit();
+}
+
+// Creates DIR (InputError when impossible) and checks that files can be created in it.
+void require_writable_dir(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir))
+    throw InputError(dir + ": cannot create the output folder (" +
+                     (ec ? ec.message() : std::string("not a folder")) + ")");
+  const fs::path probe = fs::path(dir) / (".write_probe." + std::to_string(::getpid()));
+  {
+    std::ofstream f(probe);
+    if (!f) throw InputError(dir + ": output folder is not writable");
+  }
+  fs::remove(probe, ec);
+}
+
+// Records the run settings in DIR, or checks them against an earlier call's.
+void claim_dir(const std::string& dir, const Json& wanted) {
+  const std::string path = (fs::path(dir) / kManifest).string();
+  if (fs::exists(path)) {
+    const Json have = load_json_file(path);
+    if (have != wanted)
+      throw InputError(path +
+                       ": this folder holds a dataset generated with other settings "
+                       "(family config, --trajectories, --split or --seed); use another --out");
+    return;
+  }
+  write_json_atomic(path, wanted);
+}
+
+Trajectory read_part(const std::string& path) {
+  const Dataset d(path);
+  if (d.num_trajectories() != 1) throw InputError(path + ": a part must hold one trajectory");
+  Trajectory t;
+  t.mesh = d.mesh(0);
+  t.seed = d.seed(0);
+  t.parameters = d.parameters(0);
+  t.solver_wall_s = d.solver_wall_s(0);
+  t.num_frames = d.num_frames(0);
+  for (const FieldInfo& f : d.fields()) t.fields[f.name] = d.read(0, f.name, 0, t.num_frames);
+  return t;
+}
+
+// Writes the split files of `out_dir` from the parts found in `dirs` (first folder wins).
+SplitCounts write_splits(const Json& settings, const std::vector<std::string>& dirs,
+                         const std::string& out_dir) {
+  const int64_t total = settings.at("trajectories").get<int64_t>();
+  const auto split = settings.at("split").get<std::array<int64_t, 3>>();
+  const SplitCounts counts = split_counts(total, split);
+  std::vector<std::string> parts(total);
+  int64_t missing = 0, first_missing = -1;
+  for (int64_t i = 0; i < total; ++i) {
+    for (const auto& dir : dirs)
+      if (fs::exists(part_path(dir, i))) {
+        parts[i] = part_path(dir, i);
+        break;
+      }
+    if (parts[i].empty() && missing++ == 0) first_missing = i;
+  }
+  if (missing > 0)
+    throw InputError(out_dir + ": " + std::to_string(missing) + " of " + std::to_string(total) +
+                     " trajectories are missing (first: " + part_name(first_missing) +
+                     "); run the missing shards first");
+  const std::string scene = settings.at("config").dump();
+  const int dim = settings.at("dim").get<int>();
+  const double frame_dt = settings.at("frame_dt").get<double>();
+  const int64_t sizes[3] = {counts.train, counts.valid, counts.test};
+  int64_t next = 0;
+  for (int s = 0; s < 3; ++s) {
+    DatasetWriter writer((fs::path(out_dir) / (std::string(kSplitNames[s]) + ".h5")).string(),
+                         scene, dim, frame_dt);
+    for (int64_t k = 0; k < sizes[s]; ++k, ++next) writer.add(read_part(parts[next]));
+    writer.commit();
+  }
+  return counts;
+}
+
+// Removes temporaries of split files and of generate.json whose writer was killed before its
+// rename (parts' temporaries go with the .parts folder).
+void remove_stale_temporaries(const std::string& dir) {
+  std::vector<std::string> prefixes = {std::string(kManifest) + ".tmp."};
+  for (const char* split : kSplitNames) prefixes.push_back(std::string(split) + ".h5.tmp.");
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    for (const auto& prefix : prefixes)
+      if (name.rfind(prefix, 0) == 0) stale.push_back(entry.path());
+  }
+  for (const auto& path : stale) fs::remove(path, ec);
+}
+
+}  // namespace
+
+std::string GenerateSummary::summary_line() const {
+  std::ostringstream s;
+  s.precision(3);
+  s << generated << " trajectories solved in " << wall_s << " s";
+  if (generated > 0 && wall_s > 0) s << " (" << 60.0 * generated / wall_s << " per minute)";
+  s << ", " << resumed << " resumed, " << redraws << " unstable draws replaced";
+  if (merged)
+    s << "; split " << counts.train << "/" << counts.valid << "/" << counts.test
+      << " (train/valid/test)";
+  return s.str();
+}
+
+SplitCounts split_counts(int64_t total, const std::array<int64_t, 3>& weights) {
+  const int64_t sum = weights[0] + weights[1] + weights[2];
+  int64_t base[3], rem[3], assigned = 0;
+  for (int s = 0; s < 3; ++s) {
+    base[s] = total * weights[s] / sum;
+    rem[s] = total * weights[s] % sum;
+    assigned += base[s];
+  }
+  for (int64_t left = total - assigned; left > 0; --left) {
+    int best = 0;
+    for (int s = 1; s < 3; ++s)
+      if (rem[s] > rem[best]) best = s;
+    ++base[best];
+    rem[best] = -1;
+  }
+  return {base[0], base[1], base[2]};
+}
+
+std::array<int64_t, 3> parse_split(const std::string& text, const std::string& where) {
+  std::array<int64_t, 3> w{};
+  std::istringstream in(text);
+  char c1 = 0, c2 = 0;
+  std::string rest;
+  if (!(in >> w[0] >> c1 >> w[1] >> c2 >> w[2]) || c1 != ':' || c2 != ':' || (in >> rest) ||
+      w[0] < 0 || w[1] < 0 || w[2] < 0 || w[0] + w[1] + w[2] == 0)
+    throw InputError(where + ": '" + text +
+                     "' is not a split TRAIN:VALID:TEST of non-negative integers, e.g. 80:10:10");
+  return w;
+}
+
+Shard parse_shard(const std::string& text, const std::string& where) {
+  Shard s;
+  std::istringstream in(text);
+  char slash = 0;
+  std::string rest;
+  if (!(in >> s.index >> slash >> s.count) || slash != '/' || (in >> rest) || s.count < 1 ||
+      s.index < 1 || s.index > s.count)
+    throw InputError(where + ": '" + text + "' is not a shard k/n with 1 <= k <= n");
+  return s;
+}
+
+Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
+                      const std::string& work_prefix) {
+  const SingleThreadedSolve single;
+  const int64_t traj_seed = trajectory_seed(seed, index, attempt);
+  Rng rng(static_cast<uint64_t>(traj_seed));
+  SampledScene draw = family.sampler->sample(rng, work_prefix + "_a" + std::to_string(attempt));
+  struct Cleanup {
+    const std::vector<std::string>& files;
+    ~Cleanup() {
+      std::error_code ec;
+      for (const auto& f : files) fs::remove(f, ec);
+    }
+  } cleanup{draw.work_files};
+  const mpm::Scene scene = mpm::parse_scene(draw.scene, family.file);
+  // The stored scene names scratch files by their name only: paths differ between runs.
+  Json stored = draw.scene;
+  for (auto& body : stored["bodies"])
+    if (body["shape"].value("type", "") == "mesh")
+      body["shape"]["path"] =
+          fs::path(body["shape"]["path"].get<std::string>()).filename().string();
+  Trajectory t = family.dim == 2 ? solve<2>(family, draw, scene) : solve<3>(family, draw, scene);
+  t.seed = traj_seed;
+  t.parameters =
+      Json{{"family", family.family},    {"index", index}, {"attempt", attempt}, {"run_seed", seed},
+           {"sampled", draw.parameters}, {"scene", stored}}
+          .dump();
+  return t;
+}
+
+Trajectory generate_trajectory(const FamilyConfig& family, int64_t seed, int64_t index,
+                               int max_attempts, const std::string& work_prefix,
+                               const std::function<void(const std::string&)>& on_redraw) {
+  std::string last_failure;
+  for (int attempt = 0; attempt < max_attempts; ++attempt) {
+    try {
+      return solve_draw(family, seed, index, attempt, work_prefix);
+    } catch (const NumericalError& e) {
+      last_failure = e.what();
+      if (on_redraw)
+        on_redraw("trajectory " + std::to_string(index) + " draw " + std::to_string(attempt) +
+                  " (seed " + std::to_string(trajectory_seed(seed, index, attempt)) +
+                  ") unstable, redrawn: " + e.what());
+    }
+  }
+  throw NumericalError(
+      "trajectory " + std::to_string(index) + ": all " + std::to_string(max_attempts) +
+      " draws were unstable (last: " + last_failure + "); check the family's ranges");
+}
+
+GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptions& options) {
+  if (options.trajectories < 1) throw InputError("--trajectories must be at least 1");
+  if (options.threads < 1) throw InputError("--threads must be at least 1");
+  Stopwatch clock;
+  const std::string dir = options.out_dir;
+  require_writable_dir(dir);
+  const Json settings = manifest(family, options.trajectories, options.split, options.seed);
+  claim_dir(dir, settings);
+
+  GenerateSummary summary;
+  const bool complete = std::all_of(std::begin(kSplitNames), std::end(kSplitNames), [&](auto s) {
+    return fs::exists(fs::path(dir) / (std::string(s) + ".h5"));
+  });
+  if (complete && !fs::exists(fs::path(dir) / kPartsDir) && options.shard.count == 1) {
+    remove_stale_temporaries(dir);
+    summary.merged = true;
+    summary.resumed = options.trajectories;
+    summary.counts = split_counts(options.trajectories, options.split);
+    summary.wall_s = clock.seconds();
+    return summary;
+  }
+  fs::create_directories(fs::path(dir) / kPartsDir);
+  fs::create_directories(fs::path(dir) / kWorkDir);
+  const std::string work = fs::absolute(fs::path(dir) / kWorkDir).string();
+
+  std::vector<int64_t> todo;
+  for (int64_t i = 0; i < options.trajectories; ++i) {
+    if (!options.shard.owns(i)) continue;
+    if (fs::exists(part_path(dir, i)))
+      ++summary.resumed;
+    else
+      todo.push_back(i);
+  }
+
+  std::mutex log_mutex, io_mutex;
+  std::unique_ptr<ProgressBar> bar;
+  if (options.progress && !todo.empty())
+    bar = std::make_unique<ProgressBar>("generate", static_cast<int64_t>(todo.size()));
+  std::atomic<int64_t> next{0}, done{0}, redraws{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  double solver_s = 0.0;
+  const int64_t limit = options.stop_after < 0 ? static_cast<int64_t>(todo.size())
+                                               : std::min<int64_t>(options.stop_after, todo.size());
+  auto worker = [&] {
+    try {
+      while (!failed) {
+        const int64_t k = next++;
+        if (k >= limit) break;
+        const int64_t index = todo[k];
+        Trajectory t =
+            generate_trajectory(family, options.seed, index, options.max_attempts,
+                                (fs::path(work) / ("traj_" + std::to_string(index))).string(),
+                                [&](const std::string& line) {
+                                  ++redraws;
+                                  const std::lock_guard<std::mutex> lock(log_mutex);
+                                  std::cerr << "generate: " << line << '\n';
+                                });
+        {
+          // Part files are small; serialising them keeps HDF5 safe without a thread-safe build.
+          const std::lock_guard<std::mutex> io(io_mutex);
+          DatasetWriter part(part_path(dir, index), settings.at("config").dump(), family.dim,
+                             family.frame_dt);
+          part.add(t);
+          part.commit();
+        }
+        const std::lock_guard<std::mutex> lock(log_mutex);
+        solver_s += t.solver_wall_s;
+        const int64_t finished = ++done;
+        if (bar) bar->update(finished, std::to_string(t.mesh.num_nodes()) + " nodes");
+      }
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(log_mutex);
+      if (!failed.exchange(true)) error = std::current_exception();
+    }
+  };
+  const int threads =
+      static_cast<int>(std::min<int64_t>(options.threads, std::max<int64_t>(limit, 1)));
+  std::vector<std::thread> pool;
+  for (int w = 1; w < threads; ++w) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  if (bar) bar->finish();
+  summary.generated = done;
+  summary.redraws = redraws;
+  summary.solver_s = solver_s;
+
+  const bool stopped = limit < static_cast<int64_t>(todo.size());
+  if (!stopped && options.shard.count == 1) {
+    summary.counts = write_splits(settings, {dir}, dir);
+    summary.merged = true;
+    std::error_code ec;
+    fs::remove_all(fs::path(dir) / kPartsDir, ec);
+    fs::remove_all(fs::path(dir) / kWorkDir, ec);
+    remove_stale_temporaries(dir);
+  }
+  summary.wall_s = clock.seconds();
+  return summary;
+}
+
+GenerateSummary merge_parts(const std::vector<std::string>& shard_dirs,
+                            const std::string& out_dir) {
+  if (shard_dirs.empty()) throw InputError("--merge needs at least one shard folder");
+  Stopwatch clock;
+  Json settings;
+  for (const auto& dir : shard_dirs) {
+    const std::string path = (fs::path(dir) / kManifest).string();
+    if (!fs::exists(path))
+      throw InputError(dir + ": not a bsms generate folder (no " + std::string(kManifest) + ")");
+    const Json j = load_json_file(path);
+    if (settings.is_null()) settings = j;
+    if (j != settings)
+      throw InputError(path + ": generated with other settings than " + shard_dirs[0] +
+                       " (family config, --trajectories, --split or --seed)");
+  }
+  require_writable_dir(out_dir);
+  claim_dir(out_dir, settings);
+  GenerateSummary summary;
+  summary.counts = write_splits(settings, shard_dirs, out_dir);
+  summary.merged = true;
+  summary.resumed = settings.at("trajectories").get<int64_t>();
+  summary.wall_s = clock.seconds();
+  return summary;
+}
+
+}  // namespace bsms::generate

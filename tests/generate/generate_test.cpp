@@ -1,0 +1,450 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <queue>
+#include <set>
+#include <thread>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "core/error.hpp"
+#include "data/dataset/dataset.hpp"
+#include "data/generate/family.hpp"
+#include "data/generate/generator.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace bsms;
+using namespace bsms::generate;
+
+const std::string kScenes = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
+
+// A small disks family: few frames, coarse meshes, so a trajectory takes a fraction of a second.
+FamilyConfig small_disks(std::vector<std::string> extra = {}) {
+  std::vector<std::string> sets = {"frames=6", "sample.count=[2, 3]", "sample.spacing=0.04",
+                                   "scene.background.element_size=0.06"};
+  sets.insert(sets.end(), extra.begin(), extra.end());
+  return load_family(kScenes + "disks2d.json", sets);
+}
+
+std::string input_error(const std::string& file, const std::vector<std::string>& sets) {
+  try {
+    load_family(file, sets);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("bsms_generate_test_" + name);
+  fs::remove_all(dir);
+  return dir;
+}
+
+// Equal in every dataset and attribute except solver_wall_s (wall time differs between runs).
+void expect_same_dataset(const std::string& a_path, const std::string& b_path) {
+  const Dataset a(a_path), b(b_path);
+  ASSERT_EQ(a.num_trajectories(), b.num_trajectories()) << a_path << " vs " << b_path;
+  EXPECT_EQ(a.scene(), b.scene());
+  EXPECT_EQ(a.dim(), b.dim());
+  EXPECT_EQ(a.frame_dt(), b.frame_dt());
+  for (int64_t t = 0; t < a.num_trajectories(); ++t) {
+    SCOPED_TRACE(a_path + " trajectory " + std::to_string(t));
+    EXPECT_EQ(a.seed(t), b.seed(t));
+    EXPECT_EQ(a.parameters(t), b.parameters(t));
+    EXPECT_GE(a.solver_wall_s(t), 0.0);
+    ASSERT_EQ(a.num_frames(t), b.num_frames(t));
+    EXPECT_EQ(a.mesh(t).cells, b.mesh(t).cells);
+    EXPECT_EQ(a.mesh(t).mesh_pos, b.mesh(t).mesh_pos);
+    EXPECT_EQ(a.mesh(t).node_type, b.mesh(t).node_type);
+    EXPECT_EQ(a.mesh(t).body_id, b.mesh(t).body_id);
+    const auto fa = a.fields(), fb = b.fields();
+    ASSERT_EQ(fa.size(), fb.size());
+    for (size_t k = 0; k < fa.size(); ++k) {
+      EXPECT_EQ(fa[k].name, fb[k].name);
+      EXPECT_EQ(a.read(t, fa[k].name, 0, a.num_frames(t)),
+                b.read(t, fb[k].name, 0, b.num_frames(t)));
+    }
+  }
+}
+
+void expect_same_output(const fs::path& a, const fs::path& b) {
+  for (const char* split : {"train", "valid", "test"})
+    expect_same_dataset((a / (std::string(split) + ".h5")).string(),
+                        (b / (std::string(split) + ".h5")).string());
+}
+
+TEST(Rng, IsDeterministicAndInRange) {
+  Rng a(42), b(42), c(43);
+  bool differs = false;
+  for (int i = 0; i < 1000; ++i) {
+    const double x = a.uniform(), y = b.uniform();
+    EXPECT_EQ(x, y);
+    EXPECT_GE(x, 0.0);
+    EXPECT_LT(x, 1.0);
+    differs = differs || x != c.uniform();
+    const int64_t k = a.integer(2, 4);
+    b.integer(2, 4);
+    EXPECT_GE(k, 2);
+    EXPECT_LE(k, 4);
+  }
+  EXPECT_TRUE(differs);
+  std::set<int64_t> seeds;
+  for (int64_t i = 0; i < 100; ++i)
+    for (int attempt = 0; attempt < 3; ++attempt) {
+      const int64_t s = trajectory_seed(7, i, attempt);
+      EXPECT_GE(s, 0);
+      seeds.insert(s);
+    }
+  EXPECT_EQ(seeds.size(), 300u);
+  EXPECT_NE(trajectory_seed(7, 0, 0), trajectory_seed(8, 0, 0));
+}
+
+TEST(Family, EveryShippedFamilyParses) {
+  int count = 0;
+  for (const auto& entry : fs::directory_iterator(kScenes)) {
+    if (entry.path().extension() != ".json") continue;
+    const Json j = load_json_file(entry.path().string());
+    if (!j.contains("family")) continue;
+    EXPECT_NO_THROW(load_family(entry.path().string())) << entry.path();
+    ++count;
+  }
+  EXPECT_GE(count, 4);
+}
+
+TEST(Family, DiskDrawsAreDeterministicInRangeAndDisjoint) {
+  const FamilyConfig family = load_family(kScenes + "disks2d.json");
+  std::set<int> counts;
+  for (int64_t i = 0; i < 300; ++i) {
+    Rng r1(static_cast<uint64_t>(trajectory_seed(1, i, 0)));
+    Rng r2(static_cast<uint64_t>(trajectory_seed(1, i, 0)));
+    const SampledScene a = family.sampler->sample(r1, ""), b = family.sampler->sample(r2, "");
+    ASSERT_EQ(a.scene, b.scene);
+    const Json& bodies = a.scene["bodies"];
+    counts.insert(static_cast<int>(bodies.size()));
+    ASSERT_GE(bodies.size(), 2u);
+    ASSERT_LE(bodies.size(), 4u);
+    for (size_t p = 0; p < bodies.size(); ++p) {
+      const auto c = bodies[p]["shape"]["center"].get<std::vector<double>>();
+      const double r = bodies[p]["shape"]["radius"].get<double>();
+      EXPECT_GE(r, 0.08);
+      EXPECT_LE(r, 0.15);
+      for (int k = 0; k < 2; ++k) {  // inside the 1 m box, 0.05 m from the walls
+        EXPECT_GE(c[k] - r, 0.05 - 1e-12);
+        EXPECT_LE(c[k] + r, 1.0 - 0.05 + 1e-12);
+      }
+      const auto v = bodies[p]["velocity"]["value"].get<std::vector<double>>();
+      const double speed = std::hypot(v[0], v[1]);
+      EXPECT_GE(speed, 0.2 - 1e-12);
+      EXPECT_LE(speed, 0.5 + 1e-12);
+      const double e = bodies[p]["material"]["youngs_modulus"].get<double>();
+      EXPECT_GE(e, 800.0);
+      EXPECT_LE(e, 2000.0);
+      for (size_t q = 0; q < p; ++q) {
+        const auto d = bodies[q]["shape"]["center"].get<std::vector<double>>();
+        const double s = bodies[q]["shape"]["radius"].get<double>();
+        EXPECT_GE(std::hypot(c[0] - d[0], c[1] - d[1]), r + s + 0.05 - 1e-12) << "overlap";
+      }
+    }
+    EXPECT_EQ(a.scene["output"]["frames"], 50);
+    EXPECT_NEAR(a.scene["solver"]["end_time"].get<double>(), 49 * 0.04, 1e-12);
+  }
+  EXPECT_EQ(counts, (std::set<int>{2, 3, 4}));
+}
+
+TEST(Family, BadConfigsNameFileAndKey) {
+  const std::string disks = kScenes + "disks2d.json";
+  std::string m = input_error(disks, {"sample.radius=[0.2, 0.1]"});
+  EXPECT_NE(m.find("disks2d.json"), std::string::npos) << m;
+  EXPECT_NE(m.find("sample.radius"), std::string::npos) << m;
+  EXPECT_NE(m.find("min"), std::string::npos) << m;
+  m = input_error(disks, {"sample.radius=[-0.1, 0.1]"});
+  EXPECT_NE(m.find("sample.radius"), std::string::npos) << m;
+  m = input_error(disks, {"sample.count=[4, 2]"});
+  EXPECT_NE(m.find("sample.count"), std::string::npos) << m;
+  m = input_error(disks, {"sample.colour=1"});
+  EXPECT_NE(m.find("sample.colour"), std::string::npos) << m;
+  m = input_error(disks, {"family=spheres"});
+  EXPECT_NE(m.find("spheres"), std::string::npos) << m;
+  m = input_error(disks, {"frames=1"});
+  EXPECT_NE(m.find("frames"), std::string::npos) << m;
+  m = input_error(disks, {"fields=[\"pressure\"]"});
+  EXPECT_NE(m.find("fields"), std::string::npos) << m;
+  m = input_error(disks, {"sample.material.density=[-1, 2]"});
+  EXPECT_NE(m.find("sample.material.density"), std::string::npos) << m;
+  m = input_error(disks, {"sample.material.poisson_ratio=0.5"});
+  EXPECT_NE(m.find("poisson_ratio"), std::string::npos) << m;
+  m = input_error(disks, {"sample.radius=0.6"});
+  EXPECT_NE(m.find("sample.radius"), std::string::npos) << m;
+  m = input_error(kScenes + "cantilever2d.json", {"sample.length=[1.0, 0.5]"});
+  EXPECT_NE(m.find("sample.length"), std::string::npos) << m;
+  m = input_error(kScenes + "press2d.json", {"sample.plate_thickness=-0.2"});
+  EXPECT_NE(m.find("sample.plate_thickness"), std::string::npos) << m;
+  m = input_error(kScenes + "union2d.json", {"sample.gap=[0.05, 0.01]"});
+  EXPECT_NE(m.find("sample.gap"), std::string::npos) << m;
+}
+
+TEST(Split, CountsSumAndRound) {
+  auto eq = [](SplitCounts c, int64_t a, int64_t b, int64_t d) {
+    return c.train == a && c.valid == b && c.test == d;
+  };
+  EXPECT_TRUE(eq(split_counts(10, {80, 10, 10}), 8, 1, 1));
+  EXPECT_TRUE(eq(split_counts(1400, {1000, 200, 200}), 1000, 200, 200));
+  EXPECT_TRUE(eq(split_counts(7, {80, 10, 10}), 5, 1, 1));  // 5.6, 0.7, 0.7
+  EXPECT_TRUE(eq(split_counts(3, {80, 10, 10}), 3, 0, 0));  // 2.4, 0.3, 0.3
+  EXPECT_TRUE(eq(split_counts(5, {1, 1, 1}), 2, 2, 1));     // ties go to the earlier split
+  EXPECT_TRUE(eq(split_counts(4, {0, 0, 1}), 0, 0, 4));
+  for (int64_t n = 1; n < 200; n += 7) {
+    const SplitCounts c = split_counts(n, {70, 20, 10});
+    EXPECT_EQ(c.train + c.valid + c.test, n);
+    EXPECT_LE(std::abs(static_cast<double>(c.train) - 0.7 * n), 1.0);
+  }
+  EXPECT_EQ(parse_split("80:10:10", "--split")[0], 80);
+  for (const char* bad : {"80:10", "80:10:-1", "0:0:0", "a:b:c", "80:10:10:0", "80,10,10"})
+    EXPECT_THROW(parse_split(bad, "--split"), InputError) << bad;
+}
+
+TEST(Shard, PartitionsTheIndices) {
+  for (int64_t n = 1; n <= 5; ++n)
+    for (int64_t i = 0; i < 50; ++i) {
+      int owners = 0;
+      for (int64_t k = 1; k <= n; ++k)
+        owners += parse_shard(std::to_string(k) + "/" + std::to_string(n), "--shard").owns(i);
+      EXPECT_EQ(owners, 1);
+    }
+  for (const char* bad : {"0/2", "3/2", "1/0", "1", "1/2/3", "x/2"})
+    EXPECT_THROW(parse_shard(bad, "--shard"), InputError) << bad;
+}
+
+TEST(Generate, TrajectoryHasMeshBodiesAndFields) {
+  const FamilyConfig family = small_disks({"fields=[\"velocity\", \"stress\"]"});
+  const Trajectory t = generate_trajectory(family, 3, 0, 5, "/tmp/bsms_generate_test_unused");
+  const Json p = Json::parse(t.parameters);
+  const size_t disks = p["sampled"]["disks"].size();
+  EXPECT_EQ(t.num_frames, 6);
+  EXPECT_EQ(t.mesh.dim, 2);
+  const int64_t n = t.mesh.num_nodes();
+  ASSERT_GT(n, 0);
+  std::set<int32_t> bodies(t.mesh.body_id.begin(), t.mesh.body_id.end());
+  EXPECT_EQ(bodies.size(), disks);
+  for (int32_t c : t.mesh.cells) ASSERT_LT(c, n);
+  // Cells never join two bodies: each body is its own mesh.
+  for (size_t c = 0; c < t.mesh.cells.size(); c += 3)
+    EXPECT_TRUE(t.mesh.body_id[t.mesh.cells[c]] == t.mesh.body_id[t.mesh.cells[c + 1]] &&
+                t.mesh.body_id[t.mesh.cells[c]] == t.mesh.body_id[t.mesh.cells[c + 2]]);
+  EXPECT_EQ(t.fields.at("world_pos").size(), static_cast<size_t>(6 * n * 2));
+  EXPECT_EQ(t.fields.at("velocity").size(), static_cast<size_t>(6 * n * 2));
+  EXPECT_EQ(t.fields.at("stress").size(), static_cast<size_t>(6 * n));
+  // Frame 0 is the reference configuration.
+  for (int64_t k = 0; k < n * 2; ++k) EXPECT_EQ(t.fields.at("world_pos")[k], t.mesh.mesh_pos[k]);
+  EXPECT_EQ(t.seed, trajectory_seed(3, 0, p["attempt"].get<int>()));
+  EXPECT_GE(t.solver_wall_s, 0.0);
+}
+
+TEST(Generate, OnlyRequestedFieldsAreStored) {
+  const FamilyConfig family = small_disks({"fields=[]"});
+  const Trajectory t = generate_trajectory(family, 3, 1, 5, "/tmp/bsms_generate_test_unused");
+  EXPECT_EQ(t.fields.size(), 1u);
+  EXPECT_EQ(t.fields.count("world_pos"), 1u);
+}
+
+TEST(Generate, ResumeAfterInterruptionGivesTheSameDataset) {
+  const FamilyConfig family = small_disks();
+  GenerateOptions o;
+  o.trajectories = 5;
+  o.split = {60, 20, 20};
+  o.seed = 11;
+  o.threads = 1;
+  o.out_dir = fresh_dir("whole").string();
+  const GenerateSummary whole = generate_dataset(family, o);
+  EXPECT_TRUE(whole.merged);
+  EXPECT_EQ(whole.generated, 5);
+  EXPECT_FALSE(fs::exists(fs::path(o.out_dir) / ".parts"));
+  EXPECT_EQ(Dataset(o.out_dir + "/train.h5").num_trajectories(), 3);
+  EXPECT_EQ(Dataset(o.out_dir + "/valid.h5").num_trajectories(), 1);
+  EXPECT_EQ(Dataset(o.out_dir + "/test.h5").num_trajectories(), 1);
+
+  // Interrupted twice (after 2, then 1 more part), with a stray temporary of a killed writer,
+  // then finished on two threads.
+  GenerateOptions r = o;
+  r.out_dir = fresh_dir("resumed").string();
+  r.stop_after = 2;
+  GenerateSummary s = generate_dataset(family, r);
+  EXPECT_FALSE(s.merged);
+  EXPECT_EQ(s.generated, 2);
+  EXPECT_FALSE(fs::exists(fs::path(r.out_dir) / "train.h5"));
+  std::ofstream(fs::path(r.out_dir) / ".parts" / "traj_000004.h5.tmp.99999.0") << "partial";
+  r.stop_after = 1;
+  s = generate_dataset(family, r);
+  EXPECT_EQ(s.generated, 1);
+  EXPECT_EQ(s.resumed, 2);
+  r.stop_after = -1;
+  r.threads = 2;
+  s = generate_dataset(family, r);
+  EXPECT_EQ(s.generated, 2);
+  EXPECT_EQ(s.resumed, 3);
+  EXPECT_TRUE(s.merged);
+  expect_same_output(o.out_dir, r.out_dir);
+
+  // A complete folder is left alone; other settings are refused.
+  s = generate_dataset(family, r);
+  EXPECT_EQ(s.generated, 0);
+  r.seed = 12;
+  EXPECT_THROW(generate_dataset(family, r), InputError);
+  r.seed = 11;
+  EXPECT_THROW(generate_dataset(small_disks({"frames=7"}), r), InputError);
+
+  // Shards in separate folders, merged, give the same dataset too.
+  std::vector<std::string> shard_dirs;
+  for (int k = 1; k <= 2; ++k) {
+    GenerateOptions sh = o;
+    sh.out_dir = fresh_dir("shard" + std::to_string(k)).string();
+    sh.shard = {k, 2};
+    const GenerateSummary ss = generate_dataset(family, sh);
+    EXPECT_FALSE(ss.merged);
+    EXPECT_EQ(ss.generated, k == 1 ? 3 : 2);
+    shard_dirs.push_back(sh.out_dir);
+  }
+  const std::string merged = fresh_dir("merged").string();
+  EXPECT_THROW(merge_parts({shard_dirs[0]}, merged), InputError);  // shard 2 missing
+  merge_parts(shard_dirs, merged);
+  expect_same_output(o.out_dir, merged);
+}
+
+TEST(Generate, KillNineAtAnyMomentThenRerunGivesTheSameDataset) {
+  const FamilyConfig family = small_disks();
+  GenerateOptions o;
+  o.trajectories = 6;
+  o.split = {4, 1, 1};
+  o.seed = 21;
+  o.threads = 2;
+  o.out_dir = fresh_dir("kill_reference").string();
+  generate_dataset(family, o);
+  // Kill a child process running the same command after growing delays until one finishes;
+  // the delays adapt to the machine's speed, so some kills land between parts.
+  GenerateOptions k = o;
+  k.out_dir = fresh_dir("killed").string();
+  const fs::path parts = fs::path(k.out_dir) / ".parts";
+  auto count_parts = [&] {
+    int n = 0;
+    if (fs::exists(parts))
+      for (const auto& e : fs::directory_iterator(parts)) n += e.path().extension() == ".h5";
+    return n;
+  };
+  int killed_midway = 0;
+  double delay_ms = 5.0;
+  for (int round = 0; round < 40 && !fs::exists(fs::path(k.out_dir) / "test.h5"); ++round) {
+    const int before = count_parts();
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      generate_dataset(family, k);
+      _exit(0);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(delay_ms * 1e3)));
+    kill(child, SIGKILL);
+    int status = 0;
+    waitpid(child, &status, 0);
+    delay_ms *= 1.5;
+    // A reader never sees a partial split file: once present, it opens.
+    for (const char* split : {"train", "valid", "test"}) {
+      if (fs::exists(fs::path(k.out_dir) / (std::string(split) + ".h5"))) {
+        EXPECT_NO_THROW(Dataset(k.out_dir + "/" + split + ".h5"));
+      }
+    }
+    const int after = count_parts();
+    if (after > before && after < o.trajectories) ++killed_midway;
+  }
+  EXPECT_GE(killed_midway, 1) << "no kill landed between parts: the test lost its power";
+  std::ofstream(fs::path(k.out_dir) / "valid.h5.tmp.99999.3") << "partial";
+  generate_dataset(family, k);
+  expect_same_output(o.out_dir, k.out_dir);
+  for (const auto& entry : fs::directory_iterator(k.out_dir))
+    EXPECT_EQ(entry.path().filename().string().find(".tmp."), std::string::npos)
+        << entry.path() << " left behind";
+}
+
+TEST(Generate, UnstableDrawsAreReplacedDeterministically) {
+  // A fixed time step: light draws (fast waves) break the CFL limit when the disks collide and
+  // blow up; heavy ones (wave speed ~1 m/s) run.
+  const FamilyConfig family =
+      small_disks({"sample.count=2", "scene.solver.dt=0.02", "frames=6", "frame_dt=0.1",
+                   "sample.material.youngs_modulus=1000", "sample.material.density=[1, 1000]"});
+  int replaced = 0;
+  for (int64_t index = 0; index < 20 && replaced < 2; ++index) {
+    std::vector<std::string> log;
+    const Trajectory t = generate_trajectory(family, 5, index, 30, "/tmp/bsms_generate_test_unused",
+                                             [&](const std::string& line) { log.push_back(line); });
+    const int attempt = Json::parse(t.parameters)["attempt"].get<int>();
+    EXPECT_EQ(static_cast<int>(log.size()), attempt);
+    if (attempt == 0) continue;
+    ++replaced;
+    for (int a = 0; a < attempt; ++a)
+      EXPECT_THROW(solve_draw(family, 5, index, a, "/tmp/bsms_generate_test_unused"),
+                   NumericalError);
+    const Trajectory again =
+        solve_draw(family, 5, index, attempt, "/tmp/bsms_generate_test_unused");
+    EXPECT_EQ(again.parameters, t.parameters);
+    EXPECT_EQ(again.fields.at("world_pos"), t.fields.at("world_pos"));
+    EXPECT_EQ(again.seed, trajectory_seed(5, index, attempt));
+  }
+  EXPECT_GE(replaced, 1) << "no unstable draw among the first indices: the test lost its power";
+}
+
+TEST(Generate, EveryFamilyMakesATrajectory) {
+  for (const char* name : {"press2d.json", "cantilever2d.json", "union2d.json"}) {
+    SCOPED_TRACE(name);
+    const FamilyConfig family = load_family(kScenes + name, {"frames=3", "frame_dt=0.005"});
+    const fs::path work = fresh_dir(std::string("family_") + name);
+    fs::create_directories(work);
+    const Trajectory t = generate_trajectory(family, 1, 0, 5, (work / "traj_0").string());
+    EXPECT_EQ(t.num_frames, 3);
+    EXPECT_TRUE(fs::is_empty(work)) << "scratch files left behind";
+    const std::set<int32_t> types(t.mesh.node_type.begin(), t.mesh.node_type.end());
+    if (std::string(name) == "press2d.json") {
+      EXPECT_EQ(types, (std::set<int32_t>{0, 1, 2}));
+    } else if (std::string(name) == "cantilever2d.json") {
+      EXPECT_EQ(types, (std::set<int32_t>{0, 1}));
+    } else {
+      EXPECT_EQ(types, (std::set<int32_t>{0}));
+      // Across the gap between the arms: nodes close in space but far along the mesh.
+      const int64_t n = t.mesh.num_nodes();
+      std::vector<std::vector<int32_t>> adj(n);
+      for (size_t c = 0; c < t.mesh.cells.size(); c += 3)
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b)
+            if (a != b) adj[t.mesh.cells[c + a]].push_back(t.mesh.cells[c + b]);
+      const auto& x = t.mesh.mesh_pos;
+      const double gap = Json::parse(t.parameters)["sampled"]["gap"].get<double>();
+      int64_t far_pairs = 0;
+      for (int64_t src = 0; src < n; ++src) {
+        std::vector<int> hops(n, -1);
+        std::queue<int32_t> q;
+        hops[src] = 0;
+        q.push(static_cast<int32_t>(src));
+        while (!q.empty()) {
+          const int32_t u = q.front();
+          q.pop();
+          for (int32_t v : adj[u])
+            if (hops[v] < 0) hops[v] = hops[u] + 1, q.push(v);
+        }
+        for (int64_t dst = 0; dst < n; ++dst)
+          if (std::hypot(x[2 * src] - x[2 * dst], x[2 * src + 1] - x[2 * dst + 1]) < gap + 0.03 &&
+              hops[dst] > 10)
+            ++far_pairs;
+      }
+      EXPECT_GT(far_pairs, 0) << "no spatially close, geodesically far node pairs";
+      const Json p = Json::parse(t.parameters);
+      EXPECT_NE(p["sampled"]["geometry_geo"].get<std::string>().find("BooleanUnion"),
+                std::string::npos);
+    }
+  }
+}
+
+}  // namespace
