@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 
 namespace bsms {
 
@@ -56,13 +57,6 @@ std::vector<int64_t> close_center_seeds(const ClusterNodes& clusters,
 }
 
 namespace {
-
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 constexpr int kWordBits = 64;
 constexpr int64_t kNoSum = -1;

@@ -1,26 +1,43 @@
 #!/usr/bin/env bash
-# Preprocessor benchmarks (medians of 3). Usage: scripts/bench.sh BUILD_DIR [THREADS]
-# Prints the machine, thread count and inputs with the figures; a JSON copy goes to
-# runs/bench/bench_preprocess.json.
+# Benchmarks (Google Benchmark; medians reported). Usage: scripts/bench.sh BUILD_DIR [THREADS] [WHICH]
+# WHICH: preprocess | models | mpm | all (default all). Prints the machine, threads and inputs
+# with the figures; JSON copies go to runs/bench/bench_<which>.json.
 set -euo pipefail
 
 if [[ $# -lt 1 ]]; then
-  echo "usage: $0 BUILD_DIR [THREADS]" >&2
+  echo "usage: $0 BUILD_DIR [THREADS] [preprocess|models|mpm|all]" >&2
   exit 2
 fi
 build_dir=$1
 threads=${2:-$(nproc)}
-exe=$build_dir/bench/bench_preprocess
-[[ -x $exe ]] || { echo "bench: $exe not found; build first (make build)" >&2; exit 2; }
+which=${3:-all}
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 mkdir -p "$root/runs/bench"
+echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//'), $(nproc) cores; threads: $threads; load: $(cut -d' ' -f1-3 /proc/loadavg)"
 
-echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//'), $(nproc) cores; threads: $threads"
-echo "inputs: structured triangulated squares (CloseCenter, --levels auto) of 10K..1M nodes;"
-echo "        a 1M-node square meshed and written by gmsh (.msh 4.1 ASCII), read + built;"
-echo "        exact MinAve seed and MinAve build on a 50K-node square;"
-echo "        contact enhancement of a 316-pair contact line through all levels of a 100K square."
-echo "original Python (DESIGN.md, CloseCenter 2D): 22K nodes 0.39 s, 243K nodes 6.4 s"
-OMP_NUM_THREADS=$threads OMP_WAIT_POLICY=PASSIVE "$exe" \
-  --benchmark_out="$root/runs/bench/bench_preprocess.json" --benchmark_out_format=json \
-  --benchmark_counters_tabular=true "${@:3}" | grep -E 'median|Benchmark|^-|Run on|CPU'
+run() {
+  local name=$1
+  shift
+  local exe=$build_dir/bench/bench_$name
+  [[ -x $exe ]] || { echo "bench: $exe not found; build first (make build)" >&2; exit 2; }
+  OMP_NUM_THREADS=$threads OMP_WAIT_POLICY=PASSIVE BSMS_BENCH_THREADS=$threads "$exe" \
+    --benchmark_out="$root/runs/bench/bench_$name.json" --benchmark_out_format=json \
+    --benchmark_counters_tabular=true "$@"
+}
+
+if [[ $which == preprocess || $which == all ]]; then
+  echo "== preprocess: structured triangulated squares (CloseCenter, --levels auto) of 10K..1M nodes;"
+  echo "   a 1M-node square written by gmsh (.msh 4.1) read + built; exact MinAve on 50K nodes;"
+  echo "   original Python (DESIGN.md, CloseCenter 2D): 22K nodes 0.39 s, 243K nodes 6.4 s"
+  run preprocess | grep -E 'median|Benchmark|^-'
+fi
+if [[ $which == models || $which == all ]]; then
+  echo "== models: BSMS-GNN and MeshGraphNets, latent 128, train step (forward+backward+Adam) and"
+  echo "   inference step on 2.6K-node (5 levels) and 22K-node (7 levels) triangle meshes;"
+  echo "   original PyTorch BSMS-GNN (tuned): 2.6K 0.60-0.71 s train, 0.18-0.21 s infer; 22K 12.3 s / 2.56 s"
+  run models | grep -E 'median|Benchmark|^-'
+fi
+if [[ $which == mpm || $which == all ]]; then
+  echo "== mpm: particle-steps per second, UMLS vs regular-grid quadratic B-spline, 2D and 3D"
+  run mpm | grep -E 'median|Benchmark|^-|mean'
+fi

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "data/mpm/scene.hpp"
 
 namespace bsms::generate {
@@ -13,13 +14,6 @@ namespace bsms::generate {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-uint64_t mix64(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
 
 // ---- strict readers for ranges -----------------------------------------------------------------
 
@@ -517,9 +511,9 @@ int64_t Rng::integer(int64_t lo, int64_t hi) {
 }
 
 int64_t trajectory_seed(int64_t seed, int64_t index, int attempt) {
-  uint64_t h = mix64(static_cast<uint64_t>(seed));
-  h = mix64(h ^ static_cast<uint64_t>(index));
-  h = mix64(h ^ static_cast<uint64_t>(attempt));
+  uint64_t h = splitmix64(static_cast<uint64_t>(seed));
+  h = splitmix64(h ^ static_cast<uint64_t>(index));
+  h = splitmix64(h ^ static_cast<uint64_t>(attempt));
   return static_cast<int64_t>(h >> 1);
 }
 

@@ -42,6 +42,17 @@ Material parse_material(const Json& j, const JsonContext& ctx) {
           "in (-1, 0.5)");
   m.density = r.get<double>("density");
   require(m.density > 0.0, r.context("density"), "> 0 (kg/m^3)");
+  if (m.model == MaterialModel::kHenckyJ2) {
+    // Plasticity keys exist only for hencky_j2 (elsewhere finish() rejects them as unknown).
+    m.yield_stress = r.get<double>("yield_stress");
+    require(std::isfinite(m.yield_stress) && m.yield_stress > 0.0, r.context("yield_stress"),
+            "> 0 (Pa)");
+    m.residual_yield_stress = r.opt<double>("residual_yield_stress", m.yield_stress);
+    require(m.residual_yield_stress > 0.0 && m.residual_yield_stress <= m.yield_stress,
+            r.context("residual_yield_stress"), "in (0, yield_stress] (Pa)");
+    m.softening = r.opt<double>("softening", 0.0);
+    require(std::isfinite(m.softening) && m.softening >= 0.0, r.context("softening"), ">= 0");
+  }
   r.finish();
   return m;
 }
@@ -59,14 +70,26 @@ ShapeSpec parse_shape(const Json& j, const JsonContext& ctx, int dim, const std:
     s.center = read_vector(r, "center", dim);
     s.radius = r.get<double>("radius");
     require(s.radius > 0.0, r.context("radius"), "> 0 (m)");
+  } else if (s.type == "polygon" && dim == 2) {
+    s.points = r.get<std::vector<std::vector<double>>>("points");
+    require(s.points.size() >= 3, r.context("points"), "at least 3 [x, y] vertices");
+    double area2 = 0.0;  // twice the signed area (shoelace)
+    for (size_t i = 0; i < s.points.size(); ++i) {
+      const auto& a = s.points[i];
+      require(a.size() == 2 && std::isfinite(a[0]) && std::isfinite(a[1]), r.context("points"),
+              "a list of finite [x, y] vertices");
+      const auto& b = s.points[(i + 1) % s.points.size()];
+      if (b.size() == 2) area2 += a[0] * b[1] - b[0] * a[1];
+    }
+    require(std::abs(area2) > 0.0, r.context("points"), "a polygon of non-zero area");
   } else if (s.type == "mesh") {
     s.path = r.get<std::string>("path");
     if (std::filesystem::path(s.path).is_relative())
       s.path = (std::filesystem::path(base_dir) / s.path).string();
   } else {
     throw InputError(r.context("type").where() + ": unknown shape '" + s.type + "' for dim " +
-                     std::to_string(dim) + " (allowed: box, " + (dim == 2 ? "disk" : "sphere") +
-                     ", mesh)");
+                     std::to_string(dim) + " (allowed: box, " +
+                     (dim == 2 ? "disk, polygon" : "sphere") + ", mesh)");
   }
   r.finish();
   return s;
@@ -238,8 +261,8 @@ Scene parse_scene(const Json& json, const std::string& file) {
     require(scene.output.frames >= 2, o.context("frames"), ">= 2");
     scene.output.fields = o.opt<std::vector<std::string>>("fields", scene.output.fields);
     for (const auto& f : scene.output.fields)
-      require(f == "velocity" || f == "stress", o.context("fields"),
-              "a list of velocity, stress (got '" + f + "')");
+      require(f == "velocity" || f == "stress" || f == "plastic_strain", o.context("fields"),
+              "a list of velocity, stress, plastic_strain (got '" + f + "')");
     o.finish();
   } else {
     r.opt<Json>("output", Json());
@@ -385,6 +408,12 @@ Mesh mesh_body(const BodySpec& body, int dim, const std::string& context) {
     }
   } else if (s.type == "disk") {
     gmsh::model::occ::addDisk(s.center[0], s.center[1], 0.0, s.radius, s.radius);
+  } else if (s.type == "polygon") {
+    std::vector<int> points, lines;
+    for (const auto& p : s.points) points.push_back(gmsh::model::occ::addPoint(p[0], p[1], 0.0));
+    for (size_t i = 0; i < points.size(); ++i)
+      lines.push_back(gmsh::model::occ::addLine(points[i], points[(i + 1) % points.size()]));
+    gmsh::model::occ::addPlaneSurface({gmsh::model::occ::addCurveLoop(lines)});
   } else {
     gmsh::model::occ::addSphere(s.center[0], s.center[1], s.center[2], s.radius);
   }

@@ -31,11 +31,12 @@ struct BackgroundSpec {
 };
 
 struct ShapeSpec {
-  std::string type;              // "box" | "disk" (2D) | "sphere" (3D) | "mesh"
+  std::string type;              // "box" | "disk" (2D) | "polygon" (2D) | "sphere" (3D) | "mesh"
   std::vector<double> min, max;  // box
   std::vector<double> center;    // disk, sphere
   double radius = 0.0;           // disk, sphere
   std::string path;              // mesh
+  std::vector<std::vector<double>> points;  // polygon: [x, y] vertices in order, m (unstructured)
 };
 
 // Initial velocity field v(x), m/s.
@@ -83,7 +84,9 @@ struct SolverSpec {
 
 struct OutputSpec {
   int frames = 101;  // frames written, t = 0 and end_time included
-  std::vector<std::string> fields{"velocity", "stress"};  // optional fields besides position
+  // Optional fields besides position: "velocity", "stress" (von Mises, Pa), "plastic_strain"
+  // (equivalent plastic strain α of hencky_j2, dimensionless).
+  std::vector<std::string> fields{"velocity", "stress"};
 };
 
 struct Scene {

@@ -28,9 +28,9 @@ namespace {
 template <int Dim>
 struct FrameRecorder {
   std::vector<double> time;
-  std::vector<float> position, velocity, stress;
+  std::vector<float> position, velocity, stress, plastic;
   std::vector<double> energy, momentum, angular;
-  bool with_velocity = true, with_stress = true;
+  bool with_velocity = true, with_stress = true, with_plastic = false;
 
   void record(const MpmSolver<Dim>& solver) {
     const Particles<Dim>& p = solver.particles();
@@ -42,6 +42,8 @@ struct FrameRecorder {
       }
     if (with_stress)
       for (double s : solver.von_mises_stress()) stress.push_back(static_cast<float>(s));
+    if (with_plastic)
+      for (double a : p.plastic_strain) plastic.push_back(static_cast<float>(a));
     const Diagnostics<Dim> d = solver.diagnostics();
     energy.insert(energy.end(), {d.kinetic, d.elastic, d.gravitational});
     for (int a = 0; a < Dim; ++a) momentum.push_back(d.momentum[a]);
@@ -94,6 +96,11 @@ void write_xdmf(const std::string& path, const FrameRecorder<Dim>& rec, int64_t 
       if (rec.with_stress)
         f << "        <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Node\">\n"
           << hyperslab(t, frames, particles, 0, "/frames/stress") << "        </Attribute>\n";
+      if (rec.with_plastic)
+        f << "        <Attribute Name=\"plastic_strain\" AttributeType=\"Scalar\" "
+             "Center=\"Node\">\n"
+          << hyperslab(t, frames, particles, 0, "/frames/plastic_strain")
+          << "        </Attribute>\n";
       f << "        <Attribute Name=\"mass\" AttributeType=\"Scalar\" Center=\"Node\">\n"
         << "          <DataItem Dimensions=\"" << particles
         << "\" NumberType=\"Float\" Precision=\"8\" "
@@ -116,6 +123,7 @@ SimulationSummary run(const Scene& scene, const std::string& out_dir, bool progr
   const auto& fields = scene.output.fields;
   rec.with_velocity = std::find(fields.begin(), fields.end(), "velocity") != fields.end();
   rec.with_stress = std::find(fields.begin(), fields.end(), "stress") != fields.end();
+  rec.with_plastic = std::find(fields.begin(), fields.end(), "plastic_strain") != fields.end();
   rec.record(solver);
   const Diagnostics<Dim> d0 = solver.diagnostics();
   double kinetic_max = d0.kinetic, speed_max = 0.0;  // Σ m |v|, the scale of momentum drift
@@ -170,6 +178,7 @@ SimulationSummary run(const Scene& scene, const std::string& out_dir, bool progr
     f.write<float>("/frames/position", rec.position, {T, P, Dim}, 1);
     if (rec.with_velocity) f.write<float>("/frames/velocity", rec.velocity, {T, P, Dim}, 1);
     if (rec.with_stress) f.write<float>("/frames/stress", rec.stress, {T, P}, 1);
+    if (rec.with_plastic) f.write<float>("/frames/plastic_strain", rec.plastic, {T, P}, 1);
     f.write<double>("/frames/energy", rec.energy, {T, 3});
     f.write<double>("/frames/momentum", rec.momentum, {T, Dim});
     f.write<double>("/frames/angular_momentum", rec.angular,

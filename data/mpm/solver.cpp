@@ -49,6 +49,7 @@ void Particles<Dim>::resize(int32_t n) {
   volume0.resize(n, 0.0);
   material.resize(n, 0);
   body.resize(n, 0);
+  plastic_strain.resize(n, 0.0);
 }
 
 namespace {
@@ -112,6 +113,9 @@ MpmSolver<Dim>::MpmSolver(BackgroundMesh<Dim> background, std::vector<Material> 
   for (const auto& m : materials_) max_wave_speed_ = std::max(max_wave_speed_, m.wave_speed());
 
   const int32_t P = particles_.size();
+  if (particles_.plastic_strain.empty()) particles_.plastic_strain.assign(P, 0.0);
+  if (static_cast<int32_t>(particles_.plastic_strain.size()) != P)
+    throw InputError("particle arrays differ in size (plastic_strain)");
   cell_.assign(P, -1);
   bary_.assign(P, Eigen::Matrix<double, Dim + 1, 1>::Zero());
   sigma_.assign(P, Mat<Dim>::Zero());
@@ -362,6 +366,9 @@ void MpmSolver<Dim>::step(double dt) {
       failure.record(p, "inverted (J = " + std::to_string(J) + " <= 0)");
       continue;
     }
+    // Plastic correction of the particle's own F_e and α (isochoric: J is unchanged).
+    j2_return_map<Dim>(materials_[particles_.material[p]], particles_.F[p],
+                       particles_.plastic_strain[p]);
     update_stress(p);
     if (!sigma_[p].allFinite()) failure.record(p, "NaN stress");
   }

@@ -42,12 +42,15 @@ template <int Dim>
 struct Particles {
   std::vector<Vec<Dim>> x;        // position, m
   std::vector<Vec<Dim>> v;        // velocity, m/s
-  std::vector<Mat<Dim>> F;        // deformation gradient
+  std::vector<Mat<Dim>> F;        // deformation gradient (elastic part F_e for hencky_j2)
   std::vector<Mat<Dim>> B;        // APIC affine matrix Σ w v_i (x_i − x_p)ᵀ, m²/s
   std::vector<double> mass;       // kg
   std::vector<double> volume0;    // m³ (reference)
   std::vector<int32_t> material;  // index into the solver's materials
   std::vector<int32_t> body;      // body index
+  // hencky_j2: equivalent plastic strain α (dimensionless); stays 0 for elastic models. An empty
+  // array (particles built by hand) is sized to zeros by the solver.
+  std::vector<double> plastic_strain;
   int32_t size() const { return static_cast<int32_t>(x.size()); }
   void resize(int32_t n);
 };

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/hash.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
@@ -37,13 +38,6 @@ std::string run_stats_path(const std::string& run) {
 }
 
 namespace {
-
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
 
 struct SampleRef {
   int64_t trajectory;

@@ -2,6 +2,7 @@
 // moving under gravity and drag with a per-trajectory initial velocity and two pinned nodes.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -90,7 +91,8 @@ std::string write_config(const fs::path& dir, const fs::path& data, const std::s
 class PipelineTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fresh_dir("suite");
+    // ctest runs each test in its own process, possibly at the same time: one folder each.
+    dir_ = fresh_dir("suite_" + std::to_string(::getpid()));
     fs::create_directories(dir_ / "data");
     write_split(dir_ / "data", "train", 6, 12);
     write_split(dir_ / "data", "valid", 2, 12);
@@ -191,7 +193,7 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
 }
 
 TEST_F(PipelineTest, BadConfigsAndCheckpointsAreInputErrors) {
-  const fs::path dir = fresh_dir("bad");
+  const fs::path dir = fresh_dir("bad_" + std::to_string(::getpid()));
   const std::string config = (dir / "c.json").string();
   std::ofstream(config) << R"({"data": ")" << (dir_ / "data").string()
                         << R"(", "steps": 5, "model": {"type": "bsms", "lattent": 8}})";
