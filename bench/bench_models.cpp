@@ -191,6 +191,7 @@ int main(int argc, char** argv) {
     setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
     execv("/proc/self/exe", argv);
   }
+  bsms::tune_allocator();  // as the bsms executable does
   const char* env_threads = std::getenv("BSMS_BENCH_THREADS");
   const int threads = bsms::set_num_threads(env_threads ? std::atoi(env_threads) : 2);
   bsms::configure_threads(threads);

@@ -48,6 +48,7 @@ void ensure_passive_omp_wait(char** argv) {
 
 int main(int argc, char** argv) {
   ensure_passive_omp_wait(argv);
+  bsms::tune_allocator();
 
   CLI::App app{
       "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};

@@ -1,5 +1,6 @@
 #include "core/runtime.hpp"
 
+#include <malloc.h>
 #include <omp.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -22,6 +23,11 @@ int set_num_threads(int requested) {
   const int threads = requested <= 0 ? hardware_threads() : requested;
   omp_set_num_threads(threads);
   return threads;
+}
+
+void tune_allocator() {
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
 }
 
 double peak_rss_mb() {
