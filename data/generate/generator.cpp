@@ -374,31 +374,32 @@ GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptio
   fs::create_directories(fs::path(dir) / kWorkDir);
   const std::string work = fs::absolute(fs::path(dir) / kWorkDir).string();
 
-  std::vector<int64_t> todo;
+  std::vector<int64_t> pending;
   for (int64_t i = 0; i < options.trajectories; ++i) {
     if (!options.shard.owns(i)) continue;
     if (fs::exists(part_path(dir, i)))
       ++summary.resumed;
     else
-      todo.push_back(i);
+      pending.push_back(i);
   }
 
   std::mutex log_mutex, io_mutex;
   std::unique_ptr<ProgressBar> bar;
-  if (options.progress && !todo.empty())
-    bar = std::make_unique<ProgressBar>("generate", static_cast<int64_t>(todo.size()));
+  if (options.progress && !pending.empty())
+    bar = std::make_unique<ProgressBar>("generate", static_cast<int64_t>(pending.size()));
   std::atomic<int64_t> next{0}, done{0}, redraws{0};
   std::atomic<bool> failed{false};
   std::exception_ptr error;
   double solver_s = 0.0;
-  const int64_t limit = options.stop_after < 0 ? static_cast<int64_t>(todo.size())
-                                               : std::min<int64_t>(options.stop_after, todo.size());
+  const int64_t limit = options.stop_after < 0
+                            ? static_cast<int64_t>(pending.size())
+                            : std::min<int64_t>(options.stop_after, pending.size());
   auto worker = [&] {
     try {
       while (!failed) {
         const int64_t k = next++;
         if (k >= limit) break;
-        const int64_t index = todo[k];
+        const int64_t index = pending[k];
         Trajectory t =
             generate_trajectory(family, options.seed, index, options.max_attempts,
                                 (fs::path(work) / ("traj_" + std::to_string(index))).string(),
@@ -437,7 +438,7 @@ GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptio
   summary.redraws = redraws;
   summary.solver_s = solver_s;
 
-  const bool stopped = limit < static_cast<int64_t>(todo.size());
+  const bool stopped = limit < static_cast<int64_t>(pending.size());
   if (!stopped && options.shard.count == 1) {
     summary.counts = write_splits(settings, {dir}, dir);
     summary.merged = true;

@@ -6,19 +6,13 @@
 
 #include "core/error.hpp"
 #include "data/mpm/scene.hpp"
+#include "mpm_test_util.hpp"
 
 namespace bsms::mpm {
 namespace {
 
-std::string scene_path(const std::string& name) {
-  return std::string(BSMS_SOURCE_DIR) + "/configs/scenes/" + name;
-}
-
-MpmSolver<2> make_solver(const Scene& scene) {
-  BuiltScene<2> b = build_scene<2>(scene);
-  return MpmSolver<2>(std::move(b.background), std::move(b.materials), std::move(b.particles),
-                      std::move(b.constraints), b.settings);
-}
+using testing::make_solver;
+using testing::scene_path;
 
 bool state_finite(const MpmSolver<2>& solver) {
   const auto& p = solver.particles();

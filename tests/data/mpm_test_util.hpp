@@ -4,12 +4,27 @@
 #include <gmsh.h>
 
 #include <random>
+#include <string>
 
 #include "core/gmsh_session.hpp"
 #include "data/mpm/background.hpp"
 #include "data/mpm/kernel.hpp"
+#include "data/mpm/scene.hpp"
+#include "data/mpm/solver.hpp"
 
 namespace bsms::mpm::testing {
+
+// Path of a shipped scene file.
+inline std::string scene_path(const std::string& name) {
+  return std::string(BSMS_SOURCE_DIR) + "/configs/scenes/" + name;
+}
+
+// A 2D solver for a parsed scene (background, bodies, constraints as the scene builds them).
+inline MpmSolver<2> make_solver(const Scene& scene) {
+  BuiltScene<2> b = build_scene<2>(scene);
+  return MpmSolver<2>(std::move(b.background), std::move(b.materials), std::move(b.particles),
+                      std::move(b.constraints), b.settings);
+}
 
 // Delaunay mesh of the box [0, size]^Dim with target edge length `element`; `graded` refines it
 // towards the origin so that h (the maximum edge) exceeds the local element size there.

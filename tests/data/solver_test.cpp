@@ -10,21 +10,15 @@
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "data/mpm/scene.hpp"
+#include "mpm_test_util.hpp"
 
 namespace bsms::mpm {
 namespace {
 
+using testing::make_solver;
+using testing::scene_path;
+
 constexpr double kPi = 3.14159265358979323846;
-
-std::string scene_path(const std::string& name) {
-  return std::string(BSMS_SOURCE_DIR) + "/configs/scenes/" + name;
-}
-
-MpmSolver<2> make_solver(const Scene& scene) {
-  BuiltScene<2> b = build_scene<2>(scene);
-  return MpmSolver<2>(std::move(b.background), std::move(b.materials), std::move(b.particles),
-                      std::move(b.constraints), b.settings);
-}
 
 struct BarErrors {
   double com = 0.0;     // centre-of-mass RMSE / its amplitude v0 / (β L ω)
