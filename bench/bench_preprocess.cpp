@@ -181,10 +181,8 @@ std::string gmsh_million_node_file() {
 void BM_ReadMshAndBuild(benchmark::State& state) {
   const std::string path = gmsh_million_node_file();
   std::vector<LevelReport> report;
-  const int threads = omp_get_max_threads();
   for (auto _ : state) {
     const Mesh mesh = read_mesh(path);
-    omp_set_num_threads(threads);  // gmsh sets OpenMP to its own thread count
     MultilevelGraph graph = build_multilevel_graph(mesh, BuildOptions{}, &report);
     benchmark::DoNotOptimize(graph.levels.data());
   }

@@ -126,7 +126,6 @@ void run_preprocess(const PreprocessOptions& options) {
   bsms::Stopwatch clock;
   const bsms::Mesh mesh = bsms::read_mesh(options.mesh);
   const double read_ms = clock.milliseconds();
-  bsms::set_num_threads(options.threads);  // gmsh resets OpenMP to its own thread count
   std::vector<bsms::LevelReport> report;
   clock.reset();
   const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(mesh, build, &report);

@@ -228,14 +228,13 @@ TrainResult train(const TrainRequest& request) {
   std::vector<SampleRef> valid_refs;
   for (int i = 0; i < config.valid_samples; ++i)
     valid_refs.push_back(draw_sample(valid_data, config.seed ^ 0x5bd1e995ull, -1, i));
-  GraphStore& valid_store = store;
 
   auto validate = [&]() {
     torch::NoGradGuard no_grad;
     simulator->eval();
     double total = 0;
     for (const auto& ref : valid_refs) {
-      LoadedSample s = load_sample(valid_data, valid_store, ref);
+      LoadedSample s = load_sample(valid_data, store, ref);
       Batch batch = adapter.make_batch({s.state});
       total += simulator->loss(batch, adapter.target(batch, s.next), false).item<double>();
     }
