@@ -40,23 +40,6 @@ const Json& field(const Json& m, const char* key, const char* sub) {
   return m[key][sub];
 }
 
-void write_text(const fs::path& path, const std::string& text) {
-  AtomicOutput out(path.string());
-  {
-    std::ofstream f(out.temp_path());
-    f << text;
-    if (!f) throw IoError(path.string() + ": cannot write");
-  }
-  out.commit();
-}
-
-// Runs gnuplot on a script file; an error names the script.
-void gnuplot(const fs::path& script) {
-  const std::string cmd = "gnuplot " + script.string() + " 2>" + script.string() + ".log";
-  if (std::system(cmd.c_str()) != 0)
-    throw IoError(script.string() + ": gnuplot failed (see " + script.string() + ".log)");
-}
-
 std::string quoted(const std::string& s) {
   return "'" + s + "'";
 }
@@ -144,8 +127,8 @@ std::string write_report(const ReportRequest& request) {
       g << (r ? ", " : "") << quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
         << " using 1:2 with lines lw 2 title " << quoted(runs[r].label);
     g << '\n';
-    write_text(plots / "rmse_over_steps.gp", g.str());
-    gnuplot(plots / "rmse_over_steps.gp");
+    write_text_atomic(plots / "rmse_over_steps.gp", g.str());
+    run_gnuplot(plots / "rmse_over_steps.gp");
     images.push_back("rmse_over_steps.png");
   }
   {
@@ -158,8 +141,8 @@ std::string write_report(const ReportRequest& request) {
          "0.1, graph 0.05\n";
     g << "plot " << quoted((plots / "speed.dat").string())
       << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle\n";
-    write_text(plots / "speed_vs_error.gp", g.str());
-    gnuplot(plots / "speed_vs_error.gp");
+    write_text_atomic(plots / "speed_vs_error.gp", g.str());
+    run_gnuplot(plots / "speed_vs_error.gp");
     images.push_back("speed_vs_error.png");
   }
   {
@@ -175,8 +158,8 @@ std::string write_report(const ReportRequest& request) {
         << r + 1 << " title " << quoted(runs[r].label + " valid");
     }
     g << '\n';
-    write_text(plots / "loss_vs_wall.gp", g.str());
-    gnuplot(plots / "loss_vs_wall.gp");
+    write_text_atomic(plots / "loss_vs_wall.gp", g.str());
+    run_gnuplot(plots / "loss_vs_wall.gp");
     images.push_back("loss_vs_wall.png");
   }
   // Ground truth next to prediction: first trajectory of each run, three frames.
@@ -208,8 +191,8 @@ std::string write_report(const ReportRequest& request) {
     }
     g << "unset multiplot\n";
     const fs::path script = plots / ("rollout_" + std::to_string(r) + ".gp");
-    write_text(script, g.str());
-    gnuplot(script);
+    write_text_atomic(script, g.str());
+    run_gnuplot(script);
     images.push_back("rollout_" + std::to_string(r) + ".png");
   }
 
@@ -242,7 +225,7 @@ std::string write_report(const ReportRequest& request) {
   md << "\n";
   for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";
   const fs::path report = out / "report.md";
-  write_text(report, md.str());
+  write_text_atomic(report, md.str());
   return report.string();
 }
 

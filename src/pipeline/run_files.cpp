@@ -1,5 +1,6 @@
 #include "pipeline/run_files.hpp"
 
+#include <cstdlib>
 #include <fstream>
 
 #include "core/error.hpp"
@@ -15,6 +16,22 @@ void write_json_atomic(const std::string& path, const Json& value) {
     if (!f) throw IoError(path + ": cannot write");
   }
   out.commit();
+}
+
+void write_text_atomic(const std::string& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path());
+    f << text;
+    if (!f) throw IoError(path + ": cannot write");
+  }
+  out.commit();
+}
+
+void run_gnuplot(const std::string& script) {
+  const std::string cmd = "gnuplot '" + script + "' 2>'" + script + ".log'";
+  if (std::system(cmd.c_str()) != 0)
+    throw IoError(script + ": gnuplot failed (see " + script + ".log)");
 }
 
 }  // namespace bsms

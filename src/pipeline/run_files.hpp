@@ -1,4 +1,4 @@
-// Small JSON files of a run folder, written atomically.
+// Small files of a run or report folder, written atomically, and plotting with gnuplot.
 #pragma once
 
 #include <string>
@@ -8,5 +8,10 @@
 namespace bsms {
 
 void write_json_atomic(const std::string& path, const Json& value);
+void write_text_atomic(const std::string& path, const std::string& text);
+
+// Runs gnuplot (a Debian package the Makefile installs) on a script file; its messages go to
+// SCRIPT.log and an IoError names the script when gnuplot fails.
+void run_gnuplot(const std::string& script);
 
 }  // namespace bsms
