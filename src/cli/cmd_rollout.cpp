@@ -1,4 +1,5 @@
-// bsms rollout RUN [--split test] [--data DIR] [--trajectories K] [--steps S] [--threads T]
+// bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
+// [--steps S] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
 
@@ -13,6 +14,11 @@ BSMS_COMMAND(
       sub.add_option("--data", r->data,
                      "dataset folder (default: the run's training data; use another for "
                      "zero-shot tests)");
+      sub.add_option("--seeding", r->seeding,
+                     "seeding of the multilevel graphs at test time (default: the training "
+                     "seeding)")
+          ->check(CLI::IsMember({"minave", "closecenter", "random"}));
+      sub.add_option("--out", r->out, "output folder (default RUN/rollout)");
       sub.add_option("--trajectories", r->max_trajectories, "roll out at most K (0 = all)")
           ->check(CLI::NonNegativeNumber);
       sub.add_option("--steps", r->max_steps, "at most S predicted steps each (0 = all)")

@@ -2,18 +2,70 @@
 
 #include <torch/torch.h>
 
+#include <cmath>
+#include <set>
+
 #include "core/radius_search.hpp"
 #include "preprocess/contact_enhancement.hpp"
 
 namespace bsms {
 
+namespace {
+
+Json wall_json(double v) {
+  return std::isnan(v) ? Json(nullptr) : Json(v);
+}
+
+}  // namespace
+
 Json to_json(const LagrangianSpec& s) {
-  return Json{{"dim", s.dim},
-              {"num_node_types", s.num_node_types},
-              {"position_scale", s.position_scale},
-              {"contact_radius", s.contact_radius},
-              {"public_layout", s.public_layout},
-              {"multilevel", s.multilevel}};
+  Json j{{"dim", s.dim},
+         {"num_node_types", s.num_node_types},
+         {"position_scale", s.position_scale},
+         {"contact_radius", s.contact_radius},
+         {"public_layout", s.public_layout},
+         {"multilevel", s.multilevel}};
+  if (s.has_walls()) {
+    Json lo = Json::array(), hi = Json::array();
+    for (int a = 0; a < s.dim; ++a) {
+      lo.push_back(wall_json(s.wall_lo[a]));
+      hi.push_back(wall_json(s.wall_hi[a]));
+    }
+    j["walls"] = {{"lo", lo}, {"hi", hi}, {"radius", s.wall_radius}};
+  }
+  return j;
+}
+
+void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double radius) {
+  spec.wall_lo.clear();
+  spec.wall_hi.clear();
+  spec.wall_radius = 0.0;
+  const Json parsed = Json::parse(scene_json, nullptr, false);
+  if (!parsed.is_object()) return;
+  const Json& scene =
+      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
+  const Json background = scene.value("background", Json::object());
+  if (background.value("type", std::string()) != "box" || !background.contains("min") ||
+      !background.contains("max") || !scene.contains("boundaries"))
+    return;
+  std::set<std::string> groups;
+  for (const auto& b : scene["boundaries"])
+    if (b.is_object() && b.contains("group") && b["group"].is_string())
+      groups.insert(b["group"].get<std::string>());
+  const char* names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
+  bool any = false;
+  for (int a = 0; a < spec.dim; ++a) {
+    const bool lo = groups.count(names[a][0]) > 0, hi = groups.count(names[a][1]) > 0;
+    spec.wall_lo.push_back(lo ? background["min"].at(a).get<double>() : std::nan(""));
+    spec.wall_hi.push_back(hi ? background["max"].at(a).get<double>() : std::nan(""));
+    any = any || lo || hi;
+  }
+  if (any) {
+    spec.wall_radius = radius;
+  } else {
+    spec.wall_lo.clear();
+    spec.wall_hi.clear();
+  }
 }
 
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file) {
@@ -25,6 +77,20 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   s.contact_radius = r.get<double>("contact_radius");
   s.public_layout = r.get<bool>("public_layout");
   s.multilevel = r.get<bool>("multilevel");
+  if (r.has("walls")) {
+    JsonObjectReader w(r.raw("walls"), r.context("walls"));
+    s.wall_radius = w.get<double>("radius");
+    require(s.wall_radius > 0, w.context("radius"), "> 0");
+    for (const char* side : {"lo", "hi"}) {
+      const Json& values = w.raw(side);
+      require(values.is_array() && static_cast<int>(values.size()) == s.dim, w.context(side),
+              "one coordinate or null per axis");
+      for (const auto& v : values)
+        (side[0] == 'l' ? s.wall_lo : s.wall_hi)
+            .push_back(v.is_number() ? v.get<double>() : std::nan(""));
+    }
+    w.finish();
+  }
   r.finish();
   require(s.dim >= 1 && s.dim <= 3, r.context("dim"), "1, 2 or 3");
   require(s.position_scale > 0, r.context("position_scale"), "> 0");
@@ -76,7 +142,20 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
     auto velocity = cur - s.prev;
     auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
                        .to(torch::kFloat32);
-    inputs.push_back(torch::cat({velocity, one_hot}, 1));
+    if (spec_.has_walls()) {
+      std::vector<torch::Tensor> parts = {velocity, one_hot};
+      const auto ones = torch::ones({n}, torch::kFloat32);
+      for (int a = 0; a < spec_.dim; ++a) {
+        const auto x = cur.select(1, a);
+        const double lo = spec_.wall_lo[a], hi = spec_.wall_hi[a];
+        parts.push_back(std::isnan(lo) ? ones : ((x - lo) / spec_.wall_radius).clamp(0.0, 1.0));
+        parts.push_back(std::isnan(hi) ? ones : ((hi - x) / spec_.wall_radius).clamp(0.0, 1.0));
+      }
+      for (size_t k = 2; k < parts.size(); ++k) parts[k] = parts[k].unsqueeze(1);
+      inputs.push_back(torch::cat(parts, 1));
+    } else {
+      inputs.push_back(torch::cat({velocity, one_hot}, 1));
+    }
     mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, spec_.dim},
                                         torch::kFloat32) *
                        inv_scale);

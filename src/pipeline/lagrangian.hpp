@@ -1,5 +1,6 @@
 // The Lagrangian adapter (STYLE.md 8): turns dataset frames into model inputs and a prediction
-// into the next state. Inputs per node: velocity x_t - x_{t-1} and a one-hot node type; positions:
+// into the next state. Inputs per node: velocity x_t - x_{t-1}, a one-hot node type and, in a
+// walled box, the clipped distances to the walls; positions:
 // mesh X and world x (both divided by `position_scale`); edge sets: mesh edges (X and x offsets)
 // and, when the scene has contact, contact edges (x offsets) carried to every level by A·Aᶜ·A.
 // Output: the acceleration x_{t+1} - 2 x_t + x_{t-1} (m per frame²).
@@ -21,8 +22,14 @@ struct LagrangianSpec {
   double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
   bool public_layout = false;   // node-type codes of public MeshGraphNets data
   bool multilevel = true;       // false: level 0 only (MeshGraphNets)
+  // Walls of the domain: per axis, the lower and upper wall coordinate (NaN: no wall on that
+  // side). With wall_radius > 0 every node gets 2 x dim inputs: its distance to each wall
+  // divided by wall_radius and clipped to [0, 1] (1 = far or no wall).
+  std::vector<double> wall_lo, wall_hi;
+  double wall_radius = 0.0;
 
-  int input_size() const { return dim + num_node_types; }
+  bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
+  int input_size() const { return dim + num_node_types + (has_walls() ? 2 * dim : 0); }
   int output_size() const { return dim; }
   bool has_contact() const { return contact_radius > 0; }
 };
@@ -31,6 +38,11 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
 
 // Nodes whose next position the model predicts (others follow their prescribed path).
 bool is_predicted_node(int32_t node_type, bool public_layout);
+
+// Sets spec.wall_lo/wall_hi/wall_radius from a dataset's scene JSON (a family file with a "scene"
+// object, or a scene): a "box" background whose sides are named in "boundaries" (left/right,
+// bottom/top, back/front). Leaves the spec without walls otherwise.
+void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double radius);
 
 // One graph's state at frame t.
 struct FrameState {

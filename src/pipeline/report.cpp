@@ -40,8 +40,11 @@ const Json& field(const Json& m, const char* key, const char* sub) {
   return m[key][sub];
 }
 
+// A gnuplot single-quoted string (a quote inside is doubled).
 std::string quoted(const std::string& s) {
-  return "'" + s + "'";
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
+  return q + "'";
 }
 
 // Mesh edges of a frame as gnuplot segments ("x y" pairs separated by blank lines).

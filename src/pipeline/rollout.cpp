@@ -31,18 +31,42 @@ double median(std::vector<double> v) {
 // Mean squared error per predicted step, per field, accumulated over trajectories.
 struct ErrorCurves {
   std::vector<double> pos_sum, vel_sum;
+  std::vector<double> inverted_sum;  // fraction of cells with flipped orientation, predicted
   std::vector<int64_t> count;
-  void add(size_t step, double pos_mse, double vel_mse) {
+  void add(size_t step, double pos_mse, double vel_mse, double inverted) {
     if (pos_sum.size() <= step) {
       pos_sum.resize(step + 1, 0.0);
       vel_sum.resize(step + 1, 0.0);
+      inverted_sum.resize(step + 1, 0.0);
       count.resize(step + 1, 0);
     }
     pos_sum[step] += pos_mse;
     vel_sum[step] += vel_mse;
+    inverted_sum[step] += inverted;
     ++count[step];
   }
 };
+
+// Signed measure (2D: doubled area, 3D: 6 x volume) of every simplex of `cells` at positions
+// `x` [N, dim]; the sign tells the orientation.
+torch::Tensor signed_measures(const torch::Tensor& cells, const torch::Tensor& x, int dim) {
+  std::vector<torch::Tensor> edges;
+  const auto x0 = x.index_select(0, cells.select(1, 0));
+  for (int k = 1; k <= dim; ++k) edges.push_back(x.index_select(0, cells.select(1, k)) - x0);
+  if (dim == 2)
+    return edges[0].select(1, 0) * edges[1].select(1, 1) -
+           edges[0].select(1, 1) * edges[1].select(1, 0);
+  if (dim == 3) return (torch::cross(edges[0], edges[1], 1) * edges[2]).sum(1);
+  return edges[0].select(1, 0);
+}
+
+// Fraction of cells whose orientation in `x` differs from the reference orientation.
+double inverted_fraction(const torch::Tensor& cells, const torch::Tensor& reference_sign,
+                         const torch::Tensor& x, int dim) {
+  if (cells.size(0) == 0) return 0.0;
+  const auto sign = signed_measures(cells, x, dim).sign();
+  return (sign * reference_sign <= 0).to(torch::kFloat64).mean().item<double>();
+}
 
 Json rmse_over(const ErrorCurves& c, size_t steps) {
   double pos = 0, vel = 0;
@@ -94,10 +118,11 @@ Json rollout(const RolloutRequest& request) {
   std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
                                          (fs::path(run) / "multilevel").string()};
   for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  GraphStore store(parse_seeding(config.model.seeding), levels, cache_dirs);
+  const std::string seeding = request.seeding.empty() ? config.model.seeding : request.seeding;
+  GraphStore store(parse_seeding(seeding), levels, cache_dirs);
   LagrangianAdapter adapter(spec);
 
-  const fs::path out_dir = fs::path(run) / "rollout";
+  const fs::path out_dir = request.out.empty() ? fs::path(run) / "rollout" : fs::path(request.out);
   fs::create_directories(out_dir, ec);
   const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
   DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
@@ -105,6 +130,9 @@ Json rollout(const RolloutRequest& request) {
   const double frame_dt = data.frame_dt() > 0 ? data.frame_dt() : 1.0;
   ErrorCurves curves;
   std::vector<double> infer_ms, solver_ms_per_frame;
+  // Reference: constant-velocity extrapolation from the first two frames (zero acceleration).
+  double inertial_sq = 0.0;
+  int64_t inertial_count = 0;
   double nodes_total = 0;
   Json diverged = Json::array();
   ProgressBar bar("rollout " + request.split, count);
@@ -122,6 +150,14 @@ Json rollout(const RolloutRequest& request) {
     const auto truth = torch::from_blob(raw.data(), {frames, n, spec.dim}, torch::kFloat32).clone();
     std::vector<torch::Tensor> pred = {truth[0], truth[1]};
     const MeshGraphs& graphs = store.get(mesh);
+    // Orientation checks need simplices of the full dimension (e.g. not shells in 3D).
+    const bool simplices = mesh.cell_size == spec.dim + 1 && mesh.num_cells() > 0;
+    const auto cells = simplices
+                           ? torch::from_blob(const_cast<int32_t*>(mesh.cells.data()),
+                                              {mesh.num_cells(), mesh.cell_size}, torch::kInt32)
+                                 .to(torch::kInt64)
+                           : torch::zeros({0, spec.dim + 1}, torch::kInt64);
+    const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
     for (int64_t f = 1; f + 1 < frames; ++f) {
       Stopwatch clock;
       FrameState state{&graphs, &mesh, pred[f - 1], pred[f]};
@@ -134,10 +170,18 @@ Json rollout(const RolloutRequest& request) {
         break;
       }
       pred.push_back(next);
+      {
+        const auto mask = batch.mask.unsqueeze(1);
+        const auto inertial = torch::where(
+            mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]), truth[f + 1]);
+        inertial_sq += (inertial - truth[f + 1]).pow(2).mean().item<double>();
+        ++inertial_count;
+      }
       const auto pos_err = (next - truth[f + 1]).pow(2).mean().item<double>();
       const auto vel_err =
           ((next - pred[f]) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
-      curves.add(static_cast<size_t>(f - 1), pos_err, vel_err);
+      curves.add(static_cast<size_t>(f - 1), pos_err, vel_err,
+                 inverted_fraction(cells, reference_sign, next, spec.dim));
     }
     const double solver_s = data.solver_wall_s(t);
     if (solver_s >= 0)
@@ -178,10 +222,26 @@ Json rollout(const RolloutRequest& request) {
   metrics["rmse_1"] = rmse_over(curves, 1);
   metrics["rmse_50"] = rmse_over(curves, 50);
   metrics["rmse_all"] = rmse_over(curves, curves.count.size());
+  metrics["rmse_all_constant_velocity"] =
+      inertial_count > 0 ? Json(std::sqrt(inertial_sq / static_cast<double>(inertial_count)))
+                         : Json(nullptr);
   Json per_step = Json::array();
   for (size_t s = 0; s < curves.count.size(); ++s)
     per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));
   metrics["rmse_per_step"] = {{"world_pos", per_step}};
+  // Stability: the fraction of predicted cells turned inside out (orientation flipped against
+  // the first frame), per step and at worst; the ground truth has none (the solver stops on J <=
+  // 0).
+  Json inverted = Json::array();
+  double worst_inverted = 0.0;
+  for (size_t s = 0; s < curves.count.size(); ++s) {
+    const double f = curves.inverted_sum[s] / static_cast<double>(curves.count[s]);
+    inverted.push_back(f);
+    worst_inverted = std::max(worst_inverted, f);
+  }
+  metrics["inverted_cells_per_step"] = inverted;
+  metrics["inverted_cells_max"] = worst_inverted;
+  metrics["seeding"] = seeding;
   metrics["infer_ms_per_step"] = median(infer_ms);
   const double solver_ms = solver_ms_per_frame.empty() ? -1.0 : median(solver_ms_per_frame);
   metrics["solver_ms_per_frame"] = solver_ms >= 0 ? Json(solver_ms) : Json(nullptr);

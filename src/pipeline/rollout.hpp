@@ -13,6 +13,8 @@ struct RolloutRequest {
   std::string run;
   std::string split = "test";
   std::string data;              // dataset folder; empty: the run's training data folder
+  std::string seeding;           // multilevel seeding at test time; empty: the training seeding
+  std::string out;               // output folder; empty: RUN/rollout
   int64_t max_trajectories = 0;  // 0: all
   int64_t max_steps = 0;         // 0: whole trajectories
   int threads = 0;

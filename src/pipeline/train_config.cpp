@@ -58,6 +58,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.num_node_types = f.opt<int>("num_node_types", c.features.num_node_types);
     require(c.features.num_node_types >= 0 && c.features.num_node_types <= 64,
             f.context("num_node_types"), "in 0..64 (0 = auto)");
+    c.features.walls = f.opt<std::string>("walls", c.features.walls);
+    require(c.features.walls == "auto" || c.features.walls == "off", f.context("walls"),
+            "\"auto\" or \"off\"");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -95,7 +98,8 @@ Json to_json(const TrainConfig& c) {
               {"features",
                {{"contact_radius", contact},
                 {"noise_std", c.features.noise_std},
-                {"num_node_types", c.features.num_node_types}}},
+                {"num_node_types", c.features.num_node_types},
+                {"walls", c.features.walls}}},
               {"optimizer",
                {{"lr", c.optimizer.lr},
                 {"lr_final", c.optimizer.lr_final},

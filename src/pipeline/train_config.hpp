@@ -24,6 +24,9 @@ struct FeatureConfig {
   double contact_radius = -1.0;
   double noise_std = 3e-4;  // Gaussian noise on input positions (m)
   int num_node_types = 0;   // one-hot width; 0 = auto (max node_type in training data + 1)
+  // Distance-to-wall inputs (GNS style): "auto" = on when the dataset's scene is a box
+  // background with named wall boundaries; "off".
+  std::string walls = "auto";
 };
 
 struct OptimizerConfig {

@@ -121,6 +121,8 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
   } else {
     s.contact_radius = config.features.contact_radius;
   }
+  // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
+  if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
   if (config.model.type == "mgn") {
     r.levels = 1;
   } else {

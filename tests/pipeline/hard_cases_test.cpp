@@ -1,0 +1,151 @@
+// Hard-case experiments (zero-shot, seeding, long rollouts) on the synthetic plate data, the
+// rollout's stability metrics, and the wall inputs of the Lagrangian adapter.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.hpp"
+#include "pipeline/hard_cases.hpp"
+#include "pipeline/lagrangian.hpp"
+#include "pipeline/trainer.hpp"
+#include "plate_data.hpp"
+
+namespace bsms {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::fresh_dir;
+using testing::write_config;
+using testing::write_split;
+
+class HardCasesTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fresh_dir("hard_" + std::to_string(::getpid()));
+    write_split(dir_ / "data", "train", 4, 12);  // horizon: 10 predicted steps
+    write_split(dir_ / "data", "valid", 1, 12);
+    write_split(dir_ / "data", "test", 2, 20);
+    TrainRequest r;
+    r.config_path = write_config(dir_, dir_ / "data", "bsms", 60);
+    r.out = (dir_ / "run").string();
+    r.threads = 1;
+    r.quiet = true;
+    train(r);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  HardCaseRequest request(const std::string& name) const {
+    HardCaseRequest q;
+    q.runs = {(dir_ / "run").string()};
+    q.out = (dir_ / name).string();
+    q.threads = 1;
+    q.quiet = true;
+    return q;
+  }
+  fs::path dir_;
+};
+
+TEST_F(HardCasesTest, SeedingRatiosAreAgainstTheTrainingSeeding) {
+  const Json m = seeding_experiment(request("seeding"));
+  ASSERT_EQ(m["runs"].size(), 1u);
+  const Json& run = m["runs"][0];
+  EXPECT_EQ(run["trained_with"], "minave");
+  for (const char* s : {"minave", "closecenter", "random"}) {
+    EXPECT_EQ(run["rollouts"][s]["seeding"], s);
+    EXPECT_TRUE(std::isfinite(run["ratios"][s]["rmse_all"].get<double>())) << s;
+  }
+  EXPECT_DOUBLE_EQ(run["ratios"]["minave"]["rmse_all"].get<double>(), 1.0);
+  EXPECT_TRUE(fs::exists(dir_ / "seeding" / "seeding.md"));
+  EXPECT_TRUE(fs::exists(dir_ / "seeding" / "plots" / "seeding_rmse.png"));
+}
+
+TEST_F(HardCasesTest, ZeroShotNeedsMeshesFourTimesLarger) {
+  write_split(dir_ / "large", "test", 1, 14, 14);  // 225 nodes against 49: 4.6x
+  const Json m = zero_shot_experiment(request("zero_shot"), (dir_ / "large").string());
+  EXPECT_EQ(m["train_max_nodes"], 49);
+  EXPECT_NEAR(m["size_ratio_min"].get<double>(), 225.0 / 49.0, 1e-9);
+  const Json& run = m["runs"][0];
+  EXPECT_EQ(run["zero_shot"]["num_nodes_mean"].get<double>(), 225.0);
+  EXPECT_TRUE(std::isfinite(run["zero_shot"]["rmse_all"]["world_pos"].get<double>()));
+  EXPECT_TRUE(fs::exists(dir_ / "zero_shot" / "zero_shot.md"));
+
+  write_split(dir_ / "medium", "test", 1, 14, 8);  // 81 nodes: 1.7x
+  try {
+    zero_shot_experiment(request("zero_shot2"), (dir_ / "medium").string());
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("81 nodes"), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
+  write_split(dir_ / "long", "test", 1, 102);  // 100 predicted steps = 10 x 10
+  write_split(dir_ / "short", "test", 1, 60);
+  const Json m =
+      long_rollout_experiment(request("long"), (dir_ / "long").string(), (dir_ / "short").string());
+  const Json& run = m["runs"][0];
+  EXPECT_EQ(run["horizon_steps"], 10);
+  for (const char* k : {"1H", "2H", "5H", "10H"}) EXPECT_TRUE(run["rmse_at"][k].is_number()) << k;
+  EXPECT_EQ(run["rollout"]["rmse_per_step"]["world_pos"].size(), 100u);
+  EXPECT_EQ(run["rollout"]["inverted_cells_per_step"].size(), 100u);
+  EXPECT_EQ(m["hard_runs"].size(), 1u);
+  EXPECT_TRUE(fs::exists(dir_ / "long" / "long_rollout.md"));
+  EXPECT_TRUE(fs::exists(dir_ / "long" / "plots" / "long_rmse.png"));
+  // Trajectories shorter than 10x the horizon are refused.
+  EXPECT_THROW(long_rollout_experiment(request("long2"), (dir_ / "short").string(), std::string()),
+               InputError);
+}
+
+TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
+  LagrangianSpec s;
+  s.dim = 2;
+  resolve_walls(s,
+                R"({"scene": {"background": {"type": "box", "min": [0, -1], "max": [2, 1]},
+                    "boundaries": [{"group": "left"}, {"group": "top"}]}})",
+                0.1);
+  ASSERT_TRUE(s.has_walls());
+  EXPECT_EQ(s.wall_lo[0], 0.0);
+  EXPECT_TRUE(std::isnan(s.wall_hi[0]));
+  EXPECT_TRUE(std::isnan(s.wall_lo[1]));
+  EXPECT_EQ(s.wall_hi[1], 1.0);
+  EXPECT_EQ(s.input_size(), 2 + 4 + 4);
+  // Round trip through the run's features_resolved.
+  const LagrangianSpec back = lagrangian_spec_from_json(to_json(s), "test");
+  EXPECT_EQ(back.wall_lo[0], 0.0);
+  EXPECT_TRUE(std::isnan(back.wall_hi[0]));
+  EXPECT_EQ(back.wall_radius, 0.1);
+
+  // Inputs: clipped distance / radius per side; 1 where there is no wall.
+  TrajectoryMesh mesh = testing::dragged_plate(0, 2).mesh;
+  MeshGraphs graphs;
+  const int64_t n = mesh.num_nodes();
+  auto x = torch::zeros({n, 2});
+  x.index_put_({0, 0}, 0.05);  // 0.05 from the left wall: 0.5
+  x.index_put_({0, 1}, 0.97);  // 0.03 below the top: 0.3
+  LagrangianAdapter adapter(s);
+  FrameState state{&graphs, &mesh, x, x};
+  graphs.hierarchy = GraphHierarchy();
+  const auto inputs = adapter.make_batch({state}).inputs;
+  ASSERT_EQ(inputs.size(1), 10);
+  EXPECT_NEAR(inputs[0][6].item<float>(), 0.5f, 1e-5);
+  EXPECT_EQ(inputs[0][7].item<float>(), 1.0f);
+  EXPECT_EQ(inputs[0][8].item<float>(), 1.0f);
+  EXPECT_NEAR(inputs[0][9].item<float>(), 0.3f, 1e-5);
+
+  // No box, or a box without named sides: no walls.
+  for (const char* scene : {R"({"background": {"type": "mesh"}})",
+                            R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]},
+                                "boundaries": []})",
+                            "{}"}) {
+    LagrangianSpec t;
+    resolve_walls(t, scene, 0.1);
+    EXPECT_FALSE(t.has_walls()) << scene;
+    EXPECT_EQ(t.input_size(), 2 + 4);
+  }
+}
+
+}  // namespace
+}  // namespace bsms
