@@ -179,6 +179,35 @@ torch::Tensor sparse_rows(const torch::Tensor& x, const torch::Tensor& offsets,
   return out;
 }
 
+// CSR arrays of Aᵀ [cols, rows] from those of A [rows, cols], by a stable counting sort on the
+// column, so entries of each row of Aᵀ keep the row order of A.
+struct CsrArrays {
+  torch::Tensor offsets, columns, values;
+};
+CsrArrays transpose_csr(const torch::Tensor& offsets, const torch::Tensor& columns,
+                        const torch::Tensor& values, int64_t cols) {
+  const int64_t rows = offsets.size(0) - 1, nnz = columns.size(0);
+  CsrArrays t{torch::zeros({cols + 1}, torch::kInt64), torch::empty({nnz}, torch::kInt64),
+              torch::empty({nnz}, torch::kFloat32)};
+  const int64_t* po = ptr(offsets);
+  const int64_t* pc = ptr(columns);
+  const float* pv = values.data_ptr<float>();
+  int64_t* to = t.offsets.data_ptr<int64_t>();
+  int64_t* tc = t.columns.data_ptr<int64_t>();
+  float* tv = t.values.data_ptr<float>();
+  for (int64_t q = 0; q < nnz; ++q) ++to[pc[q] + 1];
+  for (int64_t c = 0; c < cols; ++c) to[c + 1] += to[c];
+  std::vector<int64_t> next(to, to + cols);
+  for (int64_t r = 0; r < rows; ++r) {
+    for (int64_t q = po[r]; q < po[r + 1]; ++q) {
+      const int64_t slot = next[pc[q]]++;
+      tc[slot] = r;
+      tv[slot] = pv[q];
+    }
+  }
+  return t;
+}
+
 void check_edges(const torch::Tensor& t, const EdgeIndex& edges, const char* name, bool per_edge) {
   const int64_t expected = per_edge ? edges.num_edges() : edges.num_nodes;
   if (t.size(0) != expected) {
@@ -469,6 +498,7 @@ struct SparseTransfer : torch::autograd::Function<SparseTransfer> {
                        std::to_string(in_rows) + (up ? " (coarse nodes)" : " (fine nodes)"));
     }
     ctx->saved_data["up"] = up;
+    ctx->saved_data["transpose"] = t.up_is_down_transpose;
     ctx->saved_data["down_offsets"] = t.down_offsets;
     ctx->saved_data["down_columns"] = t.down_columns;
     ctx->saved_data["down_values"] = t.down_values;
@@ -483,10 +513,18 @@ struct SparseTransfer : torch::autograd::Function<SparseTransfer> {
 
   static variable_list backward(AutogradContext* ctx, variable_list grads) {
     auto& d = ctx->saved_data;
-    // The adjoint of D is Dᵀ and vice versa.
     const bool up = d["up"].toBool();
-    const std::string p = up ? "down_" : "up_";
     const int64_t rows = up ? d["coarse"].toInt() : d["fine"].toInt();
+    if (!d["transpose"].toBool()) {
+      // Up is not Dᵀ: the adjoint of the matrix used in forward, transposed here.
+      const std::string p = up ? "up_" : "down_";
+      auto at = transpose_csr(d[p + "offsets"].toTensor(), d[p + "columns"].toTensor(),
+                              d[p + "values"].toTensor(), rows);
+      return {sparse_rows(grads[0], at.offsets, at.columns, at.values, rows), torch::Tensor(),
+              torch::Tensor()};
+    }
+    // The adjoint of D is Dᵀ and vice versa.
+    const std::string p = up ? "down_" : "up_";
     auto g = sparse_rows(grads[0], d[p + "offsets"].toTensor(), d[p + "columns"].toTensor(),
                          d[p + "values"].toTensor(), rows);
     return {g, torch::Tensor(), torch::Tensor()};

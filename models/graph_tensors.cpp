@@ -115,6 +115,7 @@ LevelTransition merge_transitions(const std::vector<const LevelTransition*>& par
     uoff.push_back(t->up_offsets);
     ucol.push_back(t->up_columns);
     uval.push_back(t->up_values);
+    out.up_is_down_transpose = out.up_is_down_transpose && t->up_is_down_transpose;
   }
   out.down_offsets = cat_offsets(doff);
   out.down_columns = cat_shifted(dcol, fine_shift);

@@ -38,6 +38,8 @@ struct EdgeIndex {
 // Non-parametric transition between level k (fine) and k+1 (coarse), DESIGN.md item 6, as a sparse
 // matrix D [N_coarse, N_fine]: D[c, i] = down_weight of the fine edge i -> pooled[c].
 // Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine = Dᵀ v_coarse.
+// Other hierarchies (models/proximity_hierarchy.hpp) may give an up matrix U [N_fine, N_coarse]
+// that is not Dᵀ; they set up_is_down_transpose = false so that gradients use the true adjoints.
 struct LevelTransition {
   int64_t fine_nodes = 0;
   int64_t coarse_nodes = 0;
@@ -47,6 +49,7 @@ struct LevelTransition {
   torch::Tensor up_offsets;    // [N_fine + 1] int64, CSR rows of Dᵀ
   torch::Tensor up_columns;    // [nnz] int64, coarse node ids
   torch::Tensor up_values;     // [nnz] float32
+  bool up_is_down_transpose = true;
 };
 
 // The tensors a model needs for one graph or a block-diagonal batch of graphs.

@@ -1,11 +1,28 @@
-// bsms experiment zero-shot|seeding|long-rollout: hard-case experiments on trained runs, each a
+// bsms experiment heat-sticks|zero-shot|seeding|long-rollout: the hard-case experiments, each a
 // report section (OUT/<name>.md, OUT/plots/*.png) and OUT/metrics.json.
 #include <iostream>
+#include <memory>
 
 #include "cli/command.hpp"
 #include "pipeline/hard_cases.hpp"
+#include "pipeline/heat_sticks.hpp"
 
 namespace {
+
+void print_summary(const bsms::Json& m, const std::string& out) {
+  std::cout << "heat-sticks (" << m["threads"].get<int>() << " thread(s), "
+            << m["wall_s"].get<double>() << " s):\n";
+  for (const char* key : {"bistride", "proximity"}) {
+    const auto& r = m["models"][key];
+    std::cout << "  " << r["label"].get<std::string>() << ": train RMSE "
+              << r["train_rmse_final"].get<double>() << ", test RMSE alone "
+              << r["rmse_alone"].get<double>() << ", two sticks " << r["rmse_pair"].get<double>()
+              << ", near the gap " << r["rmse_pair_near_gap"].get<double>()
+              << "; cross-gap edges per level "
+              << r["test_hierarchy"]["cross_gap_edges_per_level"].dump() << "\n";
+  }
+  std::cout << "  -> " << out << "/heat_sticks.md\n";
+}
 
 // Options every rollout experiment shares.
 std::shared_ptr<bsms::HardCaseRequest> add_common(CLI::App& sub) {
@@ -20,8 +37,41 @@ std::shared_ptr<bsms::HardCaseRequest> add_common(CLI::App& sub) {
 }
 
 BSMS_COMMAND(
-    "experiment", "hard-case experiments: zero-shot, seeding, long-rollout", [](CLI::App& sub) {
+    "experiment", "hard-case experiments: heat-sticks, zero-shot, seeding, long-rollout",
+    [](CLI::App& sub) {
       sub.require_subcommand(1);
+      {
+        auto o = std::make_shared<bsms::HeatSticksOptions>();
+        CLI::App* heat = sub.add_subcommand(
+            "heat-sticks",
+            "spatial-proximity failure case: BSMS-GNN with bi-stride vs proximity (grid) "
+            "coarsening on 1-D steady heat, trained on single sticks, tested on two sticks "
+            "across a gap");
+        heat->add_option("--out", o->out, "output folder (metrics.json, heat_sticks.md, plots/)")
+            ->required();
+        heat->add_option("--steps", o->steps, "training steps per model")->capture_default_str();
+        heat->add_option("--nodes", o->nodes, "nodes per stick (>= 5)")->capture_default_str();
+        heat->add_option("--levels", o->levels, "levels of both hierarchies, input graph included")
+            ->capture_default_str();
+        heat->add_option("--gap", o->gap, "gap between the two test sticks, in units of dx (> 0)")
+            ->capture_default_str();
+        heat->add_option("--latent", o->latent, "MLP width")->capture_default_str();
+        heat->add_option("--batch", o->batch, "sticks per training step")->capture_default_str();
+        heat->add_option("--draws", o->test_draws,
+                         "boundary-condition draws per test orientation combination")
+            ->capture_default_str();
+        heat->add_option("--seed", o->seed, "seed of weights, training and test draws")
+            ->capture_default_str();
+        bsms::cli::add_threads_option(*heat, o->threads);
+        heat->footer(
+            "Writes DIR/metrics.json (RMSEs per model, cross-gap edges per level), "
+            "DIR/profiles.csv,\n"
+            "DIR/train_log.csv, DIR/heat_sticks.md and DIR/plots/heat_sticks.png.");
+        heat->callback([o] {
+          const auto metrics = bsms::run_heat_sticks(*o);
+          print_summary(metrics, o->out);
+        });
+      }
       {
         CLI::App* z = sub.add_subcommand(
             "zero-shot", "roll runs out on meshes at least 4x larger than their training meshes");

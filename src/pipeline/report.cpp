@@ -206,25 +206,34 @@ std::string write_report(const ReportRequest& request) {
         "RMSE is the root mean squared error of predicted world positions (m) against the UMLS-MPM "
         "ground truth over the first 1, 50 and all predicted steps of the test split.\n\n"
      << "| run | model | levels | train steps | train ms/step | infer ms/step | solver ms/frame | "
-        "speed-up | RMSE-1 | RMSE-50 | RMSE-all | peak RAM train (MB) | peak RAM infer (MB) | "
-        "nodes | threads |\n"
-     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "speed-up | RMSE-1 | RMSE-50 | RMSE-all | inverted cells (max) | peak RAM train (MB) | "
+        "peak RAM infer (MB) | nodes | threads |\n"
+     << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : runs) {
     const Json& m = r.metrics;
     md << "| " << fs::path(r.dir).filename().string() << " | " << m.value("model", "?") << " | "
        << m.value("levels", 0) << " | "
        << (m.contains("train_steps") ? m["train_steps"].dump() : "–") << " | "
        << fmt(m["train_ms_per_step"], 1) << " | " << fmt(m["infer_ms_per_step"], 2) << " | "
-       << fmt(m["solver_ms_per_frame"], 1) << " | " << fmt(m["speedup_vs_solver"], 1) << " | "
+       << fmt(m["solver_ms_per_frame"], 1) << " | " << fmt(m["speedup_vs_solver"], 3) << " | "
        << fmt(field(m, "rmse_1", "world_pos"), 2, true) << " | "
        << fmt(field(m, "rmse_50", "world_pos"), 2, true) << " | "
-       << fmt(field(m, "rmse_all", "world_pos"), 2, true) << " | " << fmt(m["peak_rss_mb_train"], 0)
+       << fmt(field(m, "rmse_all", "world_pos"), 2, true) << " | "
+       << fmt(m["inverted_cells_max"], 4) << " | " << fmt(m["peak_rss_mb_train"], 0)
        << " | " << fmt(m["peak_rss_mb_infer"], 0) << " | " << fmt(m["num_nodes_mean"], 0) << " | "
        << m.value("threads", 0) << " |\n";
     if (m.contains("diverged") && !m["diverged"].empty())
       md << "\n_" << r.label << " diverged (non-finite prediction): " << m["diverged"].dump()
          << "_\n";
   }
+  // What a model must beat: extrapolating the first velocity of each test trajectory.
+  const Json& cv = runs.front().metrics["rmse_all_constant_velocity"];
+  if (cv.is_number())
+    md << "\nReference without a model: extrapolating each trajectory's first velocity (zero "
+          "acceleration) gives RMSE-all "
+       << fmt(cv, 2, true)
+       << " m. Inverted cells: the largest fraction of predicted cells turned inside out at a "
+          "step (the solver never inverts one).\n";
   md << "\n";
   for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";
   const fs::path report = out / "report.md";
