@@ -9,7 +9,8 @@
 # Experiments 2-4 use the BSMS-GNN and MeshGraphNets runs of the demo (MODELS_DIR, default
 # runs/demo); when they are missing, the demo runs first.
 # Usage: scripts/hardcases.sh BUILD_DIR OUT_DIR [MODELS_DIR]
-#   (environment: HARDCASES_THREADS, HARDCASES_TRAJECTORIES override the defaults below)
+#   (environment: HARDCASES_THREADS, HARDCASES_TRAJECTORIES, HARDCASES_SEEDING_TRAJECTORIES
+#   override the defaults below)
 set -euo pipefail
 
 if [[ $# -lt 2 || $# -gt 3 ]]; then
@@ -24,6 +25,7 @@ bsms=$build_dir/bsms
 [[ -x $bsms ]] || { echo "hardcases: $bsms not found; build first (make build)" >&2; exit 2; }
 threads=${HARDCASES_THREADS:-0}
 count=${HARDCASES_TRAJECTORIES:-3}
+seeding_count=${HARDCASES_SEEDING_TRAJECTORIES:-20}
 family=$root/configs/scenes/disks2d.json
 mkdir -p "$out_dir"
 start=$(date +%s)
@@ -53,8 +55,10 @@ generate data_large 101 "$count" --set 'scene.background.max=[2.4,2.4]' \
 "$bsms" experiment zero-shot "${runs[@]}" --data "$out_dir/data_large" \
   --out "$out_dir/zero_shot" --threads "$threads"
 
-stage "3. seeding sensitivity at test time"
-"$bsms" experiment seeding "${runs[0]}" --out "$out_dir/seeding" --threads "$threads"
+stage "3. seeding sensitivity at test time (on more test trajectories than the demo's split)"
+generate data_seeding 404 "$seeding_count"
+"$bsms" experiment seeding "${runs[0]}" --data "$out_dir/data_seeding" --out "$out_dir/seeding" \
+  --threads "$threads"
 
 stage "4. long rollouts (500 frames = 10x the 50-frame training horizon) and hard scenes"
 generate data_long 202 "$count" --set frames=500

@@ -88,8 +88,10 @@ BSMS_COMMAND(
             "seeding",
             "roll BSMS runs out with MinAve, CloseCenter and random seeding at test time");
         auto r = add_common(*s);
-        s->callback([r] {
-          bsms::seeding_experiment(*r);
+        auto data = std::make_shared<std::string>();
+        s->add_option("--data", *data, "dataset folder to roll out (default: each run's own)");
+        s->callback([r, data] {
+          bsms::seeding_experiment(*r, *data);
           std::cout << r->out << "/seeding.md\n";
         });
       }

@@ -97,6 +97,12 @@ Json run_rollout(const HardCaseRequest& request, const RunInfo& run, const std::
   return rollout(r);
 }
 
+// RMSE-all of extrapolating the first velocity on the same trajectories (the no-model reference).
+double rmse_constant_velocity(const Json& metrics) {
+  const Json& v = metrics["rmse_all_constant_velocity"];
+  return v.is_number() ? v.get<double>() : std::nan("");
+}
+
 double rmse(const Json& metrics, const char* key) {
   const Json& v = metrics[key];
   if (!v.is_object() || !v["world_pos"].is_number()) return std::nan("");
@@ -217,7 +223,8 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
   std::vector<Curve> curves;
   std::ostringstream table;
   table << "| Run | Test set | Nodes (mean) | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | "
-           "Infer ms/step | Inverted cells (max) |\n|---|---|---|---|---|---|---|---|\n";
+           "Constant velocity RMSE-all (m) | Infer ms/step | Inverted cells (max) |\n"
+           "|---|---|---|---|---|---|---|---|---|\n";
   int64_t train_max = 0;
   Json per_run = Json::array();
   for (const auto& run : runs) {
@@ -244,7 +251,7 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
             << (is_big ? "zero-shot, larger meshes" : "own test split (training sizes)") << " | "
             << num((*m)["num_nodes_mean"].get<double>(), 0, false) << " | "
             << num(rmse(*m, "rmse_1")) << " | " << num(rmse(*m, "rmse_50")) << " | "
-            << num(rmse(*m, "rmse_all")) << " | "
+            << num(rmse(*m, "rmse_all")) << " | " << num(rmse_constant_velocity(*m)) << " | "
             << num((*m)["infer_ms_per_step"].get<double>(), 1, false) << " | "
             << num((*m)["inverted_cells_max"].get<double>(), 4, false) << " |\n";
       curves.push_back({run.label + (is_big ? ", larger meshes (zero-shot)" : ", own test split"),
@@ -289,7 +296,7 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
   return result;
 }
 
-Json seeding_experiment(const HardCaseRequest& request) {
+Json seeding_experiment(const HardCaseRequest& request, const std::string& data) {
   const auto runs = run_infos(request);
   const fs::path out = make_out(request);
   Json result = {{"experiment", "seeding"}};
@@ -300,6 +307,11 @@ Json seeding_experiment(const HardCaseRequest& request) {
         "by each heuristic; ratios are RMSE(test seeding) / RMSE(training seeding), as in the "
         "thesis (its ratios: 1.01–2.04× for random and 1.13–2.21× for the inverse heuristic on "
         "rollouts).\n\n";
+  if (!data.empty()) {
+    const SplitStats s = split_stats(data, request.split);
+    md << "Test set: `" << data << "` (" << s.trajectories << " trajectories, " << s.min_nodes
+       << "–" << s.max_nodes << " nodes).\n\n";
+  }
   std::vector<Curve> curves;
   for (const auto& run : runs) {
     if (run.model != "bsms") {
@@ -308,7 +320,8 @@ Json seeding_experiment(const HardCaseRequest& request) {
     }
     Json rows = Json::object();
     for (const std::string seeding : {"minave", "closecenter", "random"})
-      rows[seeding] = run_rollout(request, run, run.data, seeding, "seeding-" + seeding);
+      rows[seeding] =
+          run_rollout(request, run, data.empty() ? run.data : data, seeding, "seeding-" + seeding);
     const Json& base = rows[run.seeding];
     md << "**" << run.label << "**, trained with " << run.seeding << ":\n\n"
        << "| Seeding @ test | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Ratio 1-step | Ratio "
@@ -354,8 +367,9 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
   Json result = {{"experiment", "long-rollout"}, {"long", stats_json(lng)}};
   std::vector<Curve> rmse_curves, inverted_curves;
   std::ostringstream table;
-  table << "| Run | Horizon H (steps) | RMSE at H (m) | at 2H | at 5H | at 10H | Inverted cells "
-           "(max) | Diverged |\n|---|---|---|---|---|---|---|---|\n";
+  table << "| Run | Horizon H (steps) | RMSE at H (m) | at 2H | at 5H | at 10H | RMSE-all | "
+           "Constant velocity RMSE-all | Inverted cells (max) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|---|---|\n";
   Json per_run = Json::array();
   size_t horizon_marker = 0;
   for (const auto& run : runs) {
@@ -380,8 +394,9 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
       row["rmse_at"][std::to_string(k) + "H"] = std::isfinite(v) ? Json(v) : Json(nullptr);
       table << " | " << num(v);
     }
-    table << " | " << num(m["inverted_cells_max"].get<double>(), 4, false) << " | "
-          << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
+    table << " | " << num(rmse(m, "rmse_all")) << " | " << num(rmse_constant_velocity(m)) << " | "
+          << num(m["inverted_cells_max"].get<double>(), 4, false) << " | " << m["diverged"].size()
+          << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
     rmse_curves.push_back({run.label, to_vector(m["rmse_per_step"]["world_pos"])});
     inverted_curves.push_back({run.label, to_vector(m["inverted_cells_per_step"])});
     per_run.push_back(row);
@@ -404,7 +419,8 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
              : " without a failure")
      << "). H is the training horizon in predicted steps. Stability: a diverged rollout has a "
         "non-finite state; an inverted cell has its orientation flipped against the first frame "
-        "(the solver stops on any).\n\n"
+        "(the solver stops on any). Constant velocity: extrapolating each trajectory's first "
+        "velocity, the reference a model must beat.\n\n"
      << table.str() << "\n![long RMSE](plots/long_rmse.png)\n\n"
      << "![inverted cells](plots/long_inverted.png)\n\n";
 
@@ -413,15 +429,17 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     result["hard"] = stats_json(hard);
     std::vector<Curve> hard_curves;
     std::ostringstream hard_table;
-    hard_table << "| Run | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Own test split RMSE-all (m) | "
-                  "Inverted cells (max) | Diverged |\n|---|---|---|---|---|---|---|\n";
+    hard_table
+        << "| Run | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Constant velocity RMSE-all (m) "
+           "| Own test split RMSE-all (m) | Inverted cells (max) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|\n";
     Json hard_runs = Json::array();
     for (const auto& run : runs) {
       const Json m = run_rollout(request, run, hard_data, "", "hard");
       const Json own = run_rollout(request, run, run.data, "", "own");
       hard_table << "| " << run.label << " | " << num(rmse(m, "rmse_1")) << " | "
                  << num(rmse(m, "rmse_50")) << " | " << num(rmse(m, "rmse_all")) << " | "
-                 << num(rmse(own, "rmse_all")) << " | "
+                 << num(rmse_constant_velocity(m)) << " | " << num(rmse(own, "rmse_all")) << " | "
                  << num(m["inverted_cells_max"].get<double>(), 4, false) << " | "
                  << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>()
                  << " |\n";

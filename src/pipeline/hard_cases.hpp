@@ -27,8 +27,9 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
                           double min_ratio = 4.0);
 
 // Rolls each BSMS run out with the multilevel graphs of every seeding (minave, closecenter,
-// random) and reports RMSE ratios against the seeding the run was trained with.
-Json seeding_experiment(const HardCaseRequest& request);
+// random) and reports RMSE ratios against the seeding the run was trained with; `data` is the
+// dataset folder rolled out (empty: each run's own training data folder).
+Json seeding_experiment(const HardCaseRequest& request, const std::string& data = "");
 
 // Rolls every run out on `long_data` (trajectories longer than the training horizon) and, when
 // `hard_data` is not empty, on harder scenes; reports error growth and stability (diverged

@@ -219,8 +219,8 @@ std::string write_report(const ReportRequest& request) {
        << fmt(field(m, "rmse_1", "world_pos"), 2, true) << " | "
        << fmt(field(m, "rmse_50", "world_pos"), 2, true) << " | "
        << fmt(field(m, "rmse_all", "world_pos"), 2, true) << " | "
-       << fmt(m["inverted_cells_max"], 4) << " | " << fmt(m["peak_rss_mb_train"], 0)
-       << " | " << fmt(m["peak_rss_mb_infer"], 0) << " | " << fmt(m["num_nodes_mean"], 0) << " | "
+       << fmt(m["inverted_cells_max"], 4) << " | " << fmt(m["peak_rss_mb_train"], 0) << " | "
+       << fmt(m["peak_rss_mb_infer"], 0) << " | " << fmt(m["num_nodes_mean"], 0) << " | "
        << m.value("threads", 0) << " |\n";
     if (m.contains("diverged") && !m["diverged"].empty())
       md << "\n_" << r.label << " diverged (non-finite prediction): " << m["diverged"].dump()

@@ -96,7 +96,7 @@ Json rollout(const RolloutRequest& request) {
       !saved.contains("levels"))
     throw InputError(config_file + ": missing config, features_resolved or levels");
   const TrainConfig config = parse_train_config(saved["config"], config_file);
-  const LagrangianSpec spec = lagrangian_spec_from_json(saved["features_resolved"], config_file);
+  LagrangianSpec spec = lagrangian_spec_from_json(saved["features_resolved"], config_file);
   const int levels = saved["levels"].get<int>();
   const int threads = configure_threads(set_num_threads(request.threads));
 
@@ -109,6 +109,17 @@ Json rollout(const RolloutRequest& request) {
   if (data.dim() != spec.dim)
     throw InputError(data.location() + ": dimension " + std::to_string(data.dim()) +
                      " differs from the model's " + std::to_string(spec.dim));
+  if (spec.has_walls()) {
+    // Wall inputs describe the rolled-out scene's box (e.g. a larger one for zero-shot tests),
+    // with the trained radius; a scene without walls reads as "far from every wall".
+    const double radius = spec.wall_radius;
+    resolve_walls(spec, data.scene(), radius);
+    if (!spec.has_walls()) {
+      spec.wall_lo.assign(spec.dim, std::nan(""));
+      spec.wall_hi.assign(spec.dim, std::nan(""));
+      spec.wall_radius = radius;
+    }
+  }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
   const int64_t count = request.max_trajectories > 0
