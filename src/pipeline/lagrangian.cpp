@@ -68,6 +68,18 @@ void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double r
   }
 }
 
+LagrangianSpec walls_for_scene(LagrangianSpec spec, const std::string& scene_json) {
+  if (!spec.has_walls()) return spec;
+  const double radius = spec.wall_radius;
+  resolve_walls(spec, scene_json, radius);
+  if (!spec.has_walls()) {
+    spec.wall_lo.assign(spec.dim, std::nan(""));
+    spec.wall_hi.assign(spec.dim, std::nan(""));
+    spec.wall_radius = radius;
+  }
+  return spec;
+}
+
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file) {
   LagrangianSpec s;
   JsonObjectReader r(json, {file, "features_resolved"});

@@ -44,6 +44,11 @@ bool is_predicted_node(int32_t node_type, bool public_layout);
 // bottom/top, back/front). Leaves the spec without walls otherwise.
 void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double radius);
 
+// A trained spec with wall inputs, moved to another scene (e.g. a larger box for a zero-shot
+// rollout): the walls of that scene with the trained radius; a scene without walls reads as "far
+// from every wall", so the input size never changes. A spec without walls is returned as is.
+LagrangianSpec walls_for_scene(LagrangianSpec spec, const std::string& scene_json);
+
 // One graph's state at frame t.
 struct FrameState {
   const MeshGraphs* graphs = nullptr;

@@ -109,17 +109,7 @@ Json rollout(const RolloutRequest& request) {
   if (data.dim() != spec.dim)
     throw InputError(data.location() + ": dimension " + std::to_string(data.dim()) +
                      " differs from the model's " + std::to_string(spec.dim));
-  if (spec.has_walls()) {
-    // Wall inputs describe the rolled-out scene's box (e.g. a larger one for zero-shot tests),
-    // with the trained radius; a scene without walls reads as "far from every wall".
-    const double radius = spec.wall_radius;
-    resolve_walls(spec, data.scene(), radius);
-    if (!spec.has_walls()) {
-      spec.wall_lo.assign(spec.dim, std::nan(""));
-      spec.wall_hi.assign(spec.dim, std::nan(""));
-      spec.wall_radius = radius;
-    }
-  }
+  spec = walls_for_scene(spec, data.scene());
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
   const int64_t count = request.max_trajectories > 0

@@ -135,6 +135,19 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   EXPECT_EQ(inputs[0][8].item<float>(), 1.0f);
   EXPECT_NEAR(inputs[0][9].item<float>(), 0.3f, 1e-5);
 
+  // Moved to a larger box (zero-shot), and to a scene without walls: same input size.
+  const LagrangianSpec big =
+      walls_for_scene(s, R"({"background": {"type": "box", "min": [0, 0], "max": [3, 3]},
+             "boundaries": [{"group": "right"}]})");
+  EXPECT_TRUE(std::isnan(big.wall_lo[0]));
+  EXPECT_EQ(big.wall_hi[0], 3.0);
+  EXPECT_EQ(big.wall_radius, 0.1);
+  EXPECT_EQ(big.input_size(), s.input_size());
+  const LagrangianSpec open = walls_for_scene(s, "{}");
+  EXPECT_TRUE(open.has_walls());
+  EXPECT_TRUE(std::isnan(open.wall_lo[1]) && std::isnan(open.wall_hi[1]));
+  EXPECT_EQ(open.input_size(), s.input_size());
+
   // No box, or a box without named sides: no walls.
   for (const char* scene : {R"({"background": {"type": "mesh"}})",
                             R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]},
