@@ -543,6 +543,91 @@ torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& f
                                b, edges);
 }
 
+torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch::Tensor& w1_in,
+                                   const torch::Tensor& b1_in, const torch::Tensor& a_in,
+                                   const torch::Tensor& b_in, const torch::Tensor& w2_in,
+                                   const torch::Tensor& b2_in, const torch::Tensor& w3_in,
+                                   const torch::Tensor& b3_in, const EdgeIndex& edges) {
+  RECORD_FUNCTION("bsms::edge_mlp_segment_sum", std::vector<c10::IValue>());
+  if (torch::GradMode::is_enabled()) {
+    for (const auto* t :
+         {&features_in, &w1_in, &b1_in, &a_in, &b_in, &w2_in, &b2_in, &w3_in, &b3_in}) {
+      if (t->requires_grad())
+        throw InputError("graph kernel: edge_mlp_segment_sum is for inference (no gradients)");
+    }
+  }
+  auto features = checked_float(features_in, "features");
+  auto a = checked_float(a_in, "a");
+  auto b = checked_float(b_in, "b");
+  auto w1 = checked_float(w1_in, "w1");
+  auto w2 = checked_float(w2_in, "w2");
+  auto w3 = checked_float(w3_in, "w3");
+  auto b1 = b1_in.contiguous(), b2 = b2_in.contiguous(), b3 = b3_in.contiguous();
+  check_edges(features, edges, "features", true);
+  check_edges(a, edges, "a", false);
+  check_edges(b, edges, "b", false);
+  const int64_t channels = a.size(1), k = features.size(1), nodes = edges.num_nodes;
+  if (b.size(1) != channels || w1.size(0) != channels || w1.size(1) != k ||
+      b1.numel() != channels || w2.size(0) != channels || w2.size(1) != channels ||
+      b2.numel() != channels || w3.size(0) != channels || w3.size(1) != channels ||
+      b3.numel() != channels) {
+    throw InputError("graph kernel: edge_mlp_segment_sum shape mismatch");
+  }
+  auto w1t = w1.t().contiguous();  // [K, C]: the inner loop runs over contiguous channels
+  const auto w2t = w2.t(), w3t = w3.t();
+  auto out = torch::zeros({nodes, channels}, a.options());
+  const float* pf = features.data_ptr<float>();
+  const float* pw1 = w1t.data_ptr<float>();
+  const float* pa = a.data_ptr<float>();
+  const float* pb = b.data_ptr<float>();
+  const float* pb1 = b1.data_ptr<float>();
+  const float* pb2 = b2.data_ptr<float>();
+  const float* pb3 = b3.data_ptr<float>();
+  const int64_t* s = ptr(edges.senders);
+  const int64_t* r = ptr(edges.receivers);
+  const int64_t* off = ptr(edges.receiver_offsets);
+  const int64_t* order = ptr(edges.receiver_order);
+  float* po = out.data_ptr<float>();
+  constexpr int64_t kTile = 256;  // edges per tile: three [256, C] buffers stay in L2
+  // Each worker owns a range of receivers holding about the same number of edges, so it alone
+  // adds to their output rows.
+  const int64_t threads = at::in_parallel_region() ? 1 : at::get_num_threads();
+  const int64_t parts = std::max<int64_t>(1, std::min<int64_t>(threads, off[nodes] / kTile));
+  std::vector<int64_t> bounds(parts + 1, nodes);
+  for (int64_t p = 0; p < parts; ++p)
+    bounds[p] = std::lower_bound(off, off + nodes + 1, off[nodes] * p / parts) - off;
+  bounds[0] = 0;
+  parallel_blocks(parts, 1, [&](int64_t p0, int64_t p1) {
+    auto h1 = torch::empty({kTile, channels}, a.options());
+    auto h2 = torch::empty({kTile, channels}, a.options());
+    auto y = torch::empty({kTile, channels}, a.options());
+    float* ph1 = h1.data_ptr<float>();
+    float* ph2 = h2.data_ptr<float>();
+    float* py = y.data_ptr<float>();
+    float stats[2];
+    const int64_t j0 = bounds[p0], j1 = bounds[p1];
+    for (int64_t q0 = off[j0]; q0 < off[j1]; q0 += kTile) {
+      const int64_t n = std::min(kTile, off[j1] - q0);
+      for (int64_t t = 0; t < n; ++t) {
+        const int64_t e = order[q0 + t];
+        edge_first_row(nullptr, pb1, pa + s[e] * channels, pb + r[e] * channels, pf + e * k, pw1, k,
+                       channels, ph1 + t * channels);
+      }
+      auto h2n = h2.narrow(0, 0, n);
+      at::mm_out(h2n, h1.narrow(0, 0, n), w2t);
+      bias_relu_rows(ph2, pb2, true, 0, n, channels);
+      auto yn = y.narrow(0, 0, n);
+      at::mm_out(yn, h2n, w3t);
+      for (int64_t t = 0; t < n; ++t) {
+        const int64_t e = order[q0 + t];
+        layer_norm_accumulate_row(py + t * channels, pb3, channels, kLayerNormEps, stats,
+                                  po + r[e] * channels);
+      }
+    }
+  });
+  return out;
+}
+
 torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
                      bool relu) {
   RECORD_FUNCTION("bsms::linear", std::vector<c10::IValue>());

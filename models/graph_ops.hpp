@@ -35,6 +35,18 @@ int configure_threads(int threads);
 torch::Tensor layer_norm_segment_sum(const torch::Tensor& x, const torch::Tensor& bias,
                                      const EdgeIndex& edges);
 
+// Inference only (no autograd; the inputs must not need gradients): a message-passing step's whole
+// edge MLP and the sum over each receiver's edges, computed in tiles of edges that stay in cache
+// instead of as four [E, C] tensors:
+//   out[j] = Σ_{e: receivers[e] = j} layer_norm(relu(h1_e · w2ᵀ + b2) · w3ᵀ + b3),
+//   h1_e = relu(features[e] · w1ᵀ + b1 + a[senders[e]] + b[receivers[e]]).
+// The same math as edge_first_layer → linear(relu) → linear → layer_norm_segment_sum.
+torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features, const torch::Tensor& w1,
+                                   const torch::Tensor& b1, const torch::Tensor& a,
+                                   const torch::Tensor& b, const torch::Tensor& w2,
+                                   const torch::Tensor& b2, const torch::Tensor& w3,
+                                   const torch::Tensor& b3, const EdgeIndex& edges);
+
 // out[j] = Σ_{e: receivers[e] = j} x[e]. x [E, C] -> [N, C].
 torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges);
 

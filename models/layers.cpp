@@ -94,6 +94,13 @@ torch::Tensor MessagePassing::forward(const torch::Tensor& v,
     const int64_t f = features[s].size(1);
     auto a = linear(v, w.narrow(1, f, latent), {}, false);
     auto b = linear(v, w.narrow(1, f + latent, latent), {}, false);
+    if (!torch::GradMode::is_enabled()) {
+      // Inference: the edge MLP and its sum in cache-sized tiles of edges (same math).
+      node_in.push_back(edge_mlp_segment_sum(features[s], w.narrow(1, 0, f), mlp.first()->bias, a,
+                                             b, mlp.second()->weight, mlp.second()->bias,
+                                             mlp.third()->weight, mlp.third()->bias, index));
+      continue;
+    }
     auto hidden = edge_first_layer(torch::Tensor(), features[s], w.narrow(1, 0, f),
                                    mlp.first()->bias, a, b, index);
     auto y = linear(mlp.second_layer(hidden), mlp.third()->weight, {}, false);

@@ -28,6 +28,7 @@ class Mlp : public torch::nn::Module {
   torch::Tensor tail(const torch::Tensor& hidden);
 
   const torch::nn::Linear& first() const { return first_; }
+  const torch::nn::Linear& second() const { return second_; }
   const torch::nn::Linear& third() const { return third_; }
   bool layer_norm() const { return layer_norm_; }
   int64_t in_size() const { return first_->options.in_features(); }

@@ -129,6 +129,35 @@ TEST(GraphOps, LayerNormSegmentSumMatchesLayerNormThenIndexAdd) {
       });
 }
 
+TEST(GraphOps, FusedInferenceEdgeMlpMatchesTheComposedKernels) {
+  torch::manual_seed(5);
+  // 700 edges: several tiles of 256 and, with 2 threads, two receiver ranges; node 0 of the
+  // 61 has no incoming edge; k = 0 has no edge features at all.
+  const int64_t n = 61, e = 700, c = 24;
+  auto pairs = random_pairs(n - 1, e) + 1;
+  auto index = EdgeIndex::from_pairs(pairs, n);
+  for (int64_t k : {3, 0}) {
+    auto f = torch::randn({e, k});
+    auto w1 = torch::randn({c, k}), b1 = torch::randn({c});
+    auto a = torch::randn({n, c}), b = torch::randn({n, c});
+    auto w2 = torch::randn({c, c}) / 5, b2 = torch::randn({c});
+    auto w3 = torch::randn({c, c}) / 5, b3 = torch::randn({c});
+    torch::NoGradGuard no_grad;
+    auto h1 = edge_first_layer(torch::Tensor(), f, w1, b1, a, b, index);
+    auto composed =
+        layer_norm_segment_sum(linear(linear(h1, w2, b2, true), w3, {}, false), b3, index);
+    auto fused = edge_mlp_segment_sum(f, w1, b1, a, b, w2, b2, w3, b3, index);
+    expect_close(fused, composed);
+    EXPECT_EQ(fused[0].abs().max().item<float>(), 0.0f);
+  }
+  // With gradients on, inputs that need them are refused (the kernel has no backward).
+  auto a = torch::randn({n, c}, torch::requires_grad());
+  EXPECT_THROW(edge_mlp_segment_sum(torch::randn({e, 0}), torch::randn({c, 0}), torch::randn({c}),
+                                    a, a, torch::randn({c, c}), torch::randn({c}),
+                                    torch::randn({c, c}), torch::randn({c}), index),
+               InputError);
+}
+
 TEST(GraphOps, SegmentSumMatchesIndexAdd) {
   torch::manual_seed(4);
   const int64_t n = 11, e = 60, c = 5;
