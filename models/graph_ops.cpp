@@ -404,12 +404,21 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
       });
     }
     if (ctx->needs_input_grad(1)) {
-      // dW = gradᵀ x, split over output channels (blocks of at least 32 rows of dW).
-      grad_weight = torch::empty_like(weight);
-      parallel_blocks(weight.size(0), 32, [&](int64_t o0, int64_t o1) {
-        auto gw = grad_weight.slice(0, o0, o1);
-        at::mm_out(gw, grad.slice(1, o0, o1).t(), x);
+      // dW = gradᵀ x as a sum over fixed blocks of rows (so the result does not depend on the
+      // thread count): each GEMM packs only its own rows of grad and x, where splitting dW over
+      // output channels would make every thread pack all of x.
+      const int64_t rows = x.size(0);
+      const int64_t block = std::max<int64_t>(kMinGemmRows, (rows + 7) / 8);
+      const int64_t blocks = std::max<int64_t>(1, (rows + block - 1) / block);
+      auto partial = torch::empty({blocks, weight.size(0), weight.size(1)}, weight.options());
+      parallel_blocks(blocks, 1, [&](int64_t b0, int64_t b1) {
+        for (int64_t blk = b0; blk < b1; ++blk) {
+          const int64_t r0 = blk * block, r1 = std::min(rows, r0 + block);
+          auto gw = partial[blk];
+          at::mm_out(gw, grad.slice(0, r0, r1).t(), x.slice(0, r0, r1));
+        }
       });
+      grad_weight = blocks == 1 ? partial[0] : partial.sum(0);
     }
     return {grad_x, grad_weight, has_bias ? grad_bias : torch::Tensor(), torch::Tensor()};
   }
