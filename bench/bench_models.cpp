@@ -1,7 +1,7 @@
 // Training and inference step time and memory of BSMS-GNN and MeshGraphNets on structured
 // triangulated rectangles: ~2.6K nodes with 5 levels and ~22K nodes with 7 levels, latent 128,
 // inputs like CylinderFlow (velocity, node type; mesh-space edge offsets), 2 threads by default.
-//   OMP_WAIT_POLICY=PASSIVE build-models/bench/bench_models [--benchmark_filter=...]
+//   build/bench/bench_models [--benchmark_filter=...]   (sets the bsms wait policy itself)
 // BSMS_BENCH_THREADS sets the thread count. "concat" variants run the reference implementation's
 // concat-then-Linear edge layer with the same parameters (models/layers.hpp, EdgeMlpMode).
 // Counters: median_ms / min_ms per step (wall), cpu_ms = median process CPU time per step (all
@@ -186,12 +186,8 @@ void register_all() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // libgomp reads OMP_WAIT_POLICY when it loads: re-execute with it set (DESIGN.md "Dependencies").
-  if (std::getenv("OMP_WAIT_POLICY") == nullptr) {
-    setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
-    execv("/proc/self/exe", argv);
-  }
-  bsms::tune_allocator();  // as the bsms executable does
+  bsms::ensure_omp_wait_policy(argv);  // as the bsms executable does (core/runtime.hpp)
+  bsms::tune_allocator();              // as the bsms executable does
   const char* env_threads = std::getenv("BSMS_BENCH_THREADS");
   const int threads = bsms::set_num_threads(env_threads ? std::atoi(env_threads) : 2);
   bsms::configure_threads(threads);

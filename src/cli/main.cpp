@@ -32,22 +32,8 @@ void add_set_option(CLI::App& sub, std::vector<std::string>& sets) {
 
 }  // namespace bsms::cli
 
-namespace {
-
-// libgomp reads OMP_WAIT_POLICY once, when it loads: spin-waiting threads steal the second core
-// from serial work (measured 1.8x slower training on 2 cores, DESIGN.md). Re-execute with PASSIVE
-// unless the user chose a policy.
-void ensure_passive_omp_wait(char** argv) {
-  if (std::getenv("OMP_WAIT_POLICY") != nullptr) return;
-  setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
-  execv("/proc/self/exe", argv);
-  // If re-exec fails we continue with the default policy: slower, still correct.
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
-  ensure_passive_omp_wait(argv);
+  bsms::ensure_omp_wait_policy(argv);  // libgomp's wait policy (core/runtime.hpp)
   bsms::tune_allocator();
 
   CLI::App app{

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -23,6 +24,13 @@ int set_num_threads(int requested) {
   const int threads = requested <= 0 ? hardware_threads() : requested;
   omp_set_num_threads(threads);
   return threads;
+}
+
+void ensure_omp_wait_policy(char** argv) {
+  if (std::getenv("OMP_WAIT_POLICY") != nullptr || std::getenv("GOMP_SPINCOUNT") != nullptr) return;
+  setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+  setenv("GOMP_SPINCOUNT", "100000", 1);
+  execv("/proc/self/exe", argv);
 }
 
 void tune_allocator() {

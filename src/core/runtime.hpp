@@ -18,6 +18,16 @@ int hardware_threads();
 // CPU time in the kernel, training step 326 -> 275 ms on the 2.6K-node benchmark mesh).
 void tune_allocator();
 
+// libgomp reads its wait policy once, when it loads. Unless the user set OMP_WAIT_POLICY or
+// GOMP_SPINCOUNT, re-executes the program (argv, via /proc/self/exe) with OMP_WAIT_POLICY=PASSIVE
+// and GOMP_SPINCOUNT=100000: an idle worker spins ~1 ms, then sleeps. GNU's default (3 ms of
+// spinning, throttled) stole the second core from the original model's serial work (1.8x slower
+// training, DESIGN.md); pure PASSIVE (no spin) pays a futex wake-up at every parallel region.
+// Measured on 2 cores, in alternating runs: the 2.6K-node BSMS training step 271-301 ms (PASSIVE)
+// -> 223-243 ms, inference 68-78 -> 59-64 ms, a 2D UMLS-MPM step 1.19-1.31 -> 0.81-0.94 ms.
+// Returns only when nothing had to change or the re-exec failed (then: slower, still correct).
+void ensure_omp_wait_policy(char** argv);
+
 class Stopwatch {
  public:
   Stopwatch() : start_(std::chrono::steady_clock::now()) {}
