@@ -60,7 +60,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
   entry->key = key;
   const Mesh core_mesh = to_mesh(mesh);
   entry->mesh_pos = core_mesh.points;
-  const std::string name = to_string(seeding_) + "-L" + std::to_string(levels_) + "-" + key + ".h5";
+  const std::string name = multilevel_cache_name(seeding_, levels_, key);
   bool loaded = false;
   for (const auto& dir : cache_dirs_) {
     const std::string path = (fs::path(dir) / name).string();

@@ -116,13 +116,6 @@ std::string num(double v, int precision = 3, bool scientific = true) {
   return s.str();
 }
 
-// A gnuplot single-quoted string (a quote inside is doubled).
-std::string quoted(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
-  return q + "'";
-}
-
 struct Curve {
   std::string label;
   std::vector<double> values;  // per predicted step (step = index + 1)
@@ -142,14 +135,14 @@ void plot_curves(const fs::path& plots, const std::string& name, const std::stri
                  const std::vector<std::pair<double, std::string>>& vlines = {}) {
   std::ostringstream g;
   g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-    << quoted((plots / (name + ".png")).string()) << "\nset title " << quoted(title)
-    << "\nset xlabel 'predicted step'\nset ylabel " << quoted(ylabel)
+    << gnuplot_quoted((plots / (name + ".png")).string()) << "\nset title " << gnuplot_quoted(title)
+    << "\nset xlabel 'predicted step'\nset ylabel " << gnuplot_quoted(ylabel)
     << "\nset key left top\nset grid\n";
   if (logy) g << "set logscale y\n";
   for (size_t i = 0; i < vlines.size(); ++i)
     g << "set arrow " << i + 1 << " from " << vlines[i].first << ", graph 0 to " << vlines[i].first
       << ", graph 1 nohead dt 2 lc rgb 'gray40'\nset label " << i + 1 << ' '
-      << quoted(vlines[i].second) << " at " << vlines[i].first
+      << gnuplot_quoted(vlines[i].second) << " at " << vlines[i].first
       << ", graph 0.96 left offset 0.5,0 tc rgb 'gray30'\n";
   g << "plot ";
   for (size_t c = 0; c < curves.size(); ++c) {
@@ -161,8 +154,8 @@ void plot_curves(const fs::path& plots, const std::string& name, const std::stri
       if (std::isfinite(v) && (!logy || v > 0)) d << s + 1 << ' ' << v << '\n';
     }
     write_text_atomic(dat.string(), d.str());
-    g << (c ? ", " : "") << quoted(dat.string()) << " using 1:2 with " << curves[c].style
-      << " title " << quoted(curves[c].label);
+    g << (c ? ", " : "") << gnuplot_quoted(dat.string()) << " using 1:2 with " << curves[c].style
+      << " title " << gnuplot_quoted(curves[c].label);
   }
   g << '\n';
   const fs::path script = plots / (name + ".gp");
@@ -187,11 +180,11 @@ void plot_final_frame(const std::string& rollout_h5, const fs::path& plots, cons
   write_text_atomic((plots / (name + "_truth.dat")).string(), td.str());
   std::ostringstream g;
   g << "set terminal pngcairo size 800,800 font ',11' noenhanced\nset output "
-    << quoted((plots / (name + ".png")).string()) << "\nset title " << quoted(title)
+    << gnuplot_quoted((plots / (name + ".png")).string()) << "\nset title " << gnuplot_quoted(title)
     << "\nset size ratio -1\nset key outside bottom center horizontal\nset grid\nplot "
-    << quoted((plots / (name + "_truth.dat")).string())
+    << gnuplot_quoted((plots / (name + "_truth.dat")).string())
     << " using 1:2 with points pt 7 ps 0.5 lc rgb 'gray60' title 'ground truth (UMLS-MPM)', "
-    << quoted((plots / (name + "_pred.dat")).string())
+    << gnuplot_quoted((plots / (name + "_pred.dat")).string())
     << " using 1:2 with points pt 7 ps 0.3 lc rgb '#d62728' title 'prediction'\n";
   const fs::path script = plots / (name + ".gp");
   write_text_atomic(script.string(), g.str());

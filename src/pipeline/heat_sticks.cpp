@@ -183,8 +183,8 @@ struct TestCase {
 std::string plot_script(const HeatSticksOptions& o, const fs::path& plots,
                         const std::vector<TestCase>& cases, double gap_mid) {
   std::ostringstream g;
-  g << "set terminal pngcairo size 1400,1000 font ',11' noenhanced\nset output '"
-    << (plots / "heat_sticks.png").string() << "'\nset multiplot layout 2,2 title "
+  g << "set terminal pngcairo size 1400,1000 font ',11' noenhanced\nset output "
+    << gnuplot_quoted((plots / "heat_sticks.png").string()) << "\nset multiplot layout 2,2 title "
     << "'Steady 1-D heat on two sticks with a gap of " << number(o.gap)
     << " dx (first test draw): exact solution, BSMS-GNN with bi-stride and with proximity "
        "coarsening'\n"
@@ -195,12 +195,12 @@ std::string plot_script(const HeatSticksOptions& o, const fs::path& plots,
     << "set label 1 'gap' at " << gap_mid << ", graph 0.04 offset 0.5,0 tc rgb '#555555'\n";
   for (const auto& c : cases) {
     if (c.draw != 0) continue;
-    const std::string data =
-        (plots / ("heat_sticks_" + std::string(kCombos[c.combo].name) + ".dat")).string();
+    const std::string data = gnuplot_quoted(
+        (plots / ("heat_sticks_" + std::string(kCombos[c.combo].name) + ".dat")).string());
     g << "set title '" << kCombos[c.combo].name << "   (D = Dirichlet end, F = flux end, "
-      << "- = gap)'\nplot '" << data << "' using 1:2 with lines lw 2 lc rgb '#222222' title "
-      << "'exact', '" << data << "' using 1:3 with points pt 6 ps 1.3 lc rgb '#1f77b4' title "
-      << "'bi-stride', '" << data << "' using 1:4 with points pt 2 ps 1.3 lc rgb '#d62728' title "
+      << "- = gap)'\nplot " << data << " using 1:2 with lines lw 2 lc rgb '#222222' title "
+      << "'exact', " << data << " using 1:3 with points pt 6 ps 1.3 lc rgb '#1f77b4' title "
+      << "'bi-stride', " << data << " using 1:4 with points pt 2 ps 1.3 lc rgb '#d62728' title "
       << "'proximity'\n";
   }
   g << "unset multiplot\n";

@@ -40,13 +40,6 @@ const Json& field(const Json& m, const char* key, const char* sub) {
   return m[key][sub];
 }
 
-// A gnuplot single-quoted string (a quote inside is doubled).
-std::string quoted(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
-  return q + "'";
-}
-
 // Mesh edges of a frame as gnuplot segments ("x y" pairs separated by blank lines).
 void write_edges(std::ofstream& f, const TrajectoryMesh& mesh, const std::vector<float>& x,
                  int dim) {
@@ -122,13 +115,14 @@ std::string write_report(const ReportRequest& request) {
   {
     std::ostringstream g;
     g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << quoted((plots / "rmse_over_steps.png").string())
+      << gnuplot_quoted((plots / "rmse_over_steps.png").string())
       << "\nset title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
          "'predicted step'"
          "\nset ylabel 'RMSE (m)'\nset logscale y\nset key left top\nset grid\nplot ";
     for (size_t r = 0; r < runs.size(); ++r)
-      g << (r ? ", " : "") << quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
-        << " using 1:2 with lines lw 2 title " << quoted(runs[r].label);
+      g << (r ? ", " : "")
+        << gnuplot_quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
+        << " using 1:2 with lines lw 2 title " << gnuplot_quoted(runs[r].label);
     g << '\n';
     write_text_atomic(plots / "rmse_over_steps.gp", g.str());
     run_gnuplot(plots / "rmse_over_steps.gp");
@@ -137,12 +131,12 @@ std::string write_report(const ReportRequest& request) {
   {
     std::ostringstream g;
     g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << quoted((plots / "speed_vs_error.png").string())
+      << gnuplot_quoted((plots / "speed_vs_error.png").string())
       << "\nset title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
          "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
          "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
          "0.1, graph 0.05\n";
-    g << "plot " << quoted((plots / "speed.dat").string())
+    g << "plot " << gnuplot_quoted((plots / "speed.dat").string())
       << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle\n";
     write_text_atomic(plots / "speed_vs_error.gp", g.str());
     run_gnuplot(plots / "speed_vs_error.gp");
@@ -151,14 +145,16 @@ std::string write_report(const ReportRequest& request) {
   {
     std::ostringstream g;
     g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << quoted((plots / "loss_vs_wall.png").string())
+      << gnuplot_quoted((plots / "loss_vs_wall.png").string())
       << "\nset title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
          "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
     for (size_t r = 0; r < runs.size(); ++r) {
-      const std::string data = quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string());
+      const std::string data =
+          gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string());
       g << (r ? ", " : "") << data << " using 1:2 with lines lc " << r + 1 << " title "
-        << quoted(runs[r].label + " train") << ", " << data << " using 1:3 with points pt 7 lc "
-        << r + 1 << " title " << quoted(runs[r].label + " valid");
+        << gnuplot_quoted(runs[r].label + " train") << ", " << data
+        << " using 1:3 with points pt 7 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + " valid");
     }
     g << '\n';
     write_text_atomic(plots / "loss_vs_wall.gp", g.str());
@@ -177,9 +173,9 @@ std::string write_report(const ReportRequest& request) {
     const std::vector<int64_t> shown = {0, frames / 2, frames - 1};
     std::ostringstream g;
     g << "set terminal pngcairo size 1500,560 font ',11' noenhanced\nset output "
-      << quoted((plots / ("rollout_" + std::to_string(r) + ".png")).string())
+      << gnuplot_quoted((plots / ("rollout_" + std::to_string(r) + ".png")).string())
       << "\nset multiplot layout 1,3 title "
-      << quoted("Ground truth (grey) and prediction (red): " + runs[r].label)
+      << gnuplot_quoted("Ground truth (grey) and prediction (red): " + runs[r].label)
       << "\nset size ratio -1\nunset key\n";
     for (size_t k = 0; k < shown.size(); ++k) {
       const std::string base = "frames_" + std::to_string(r) + "_" + std::to_string(k);
@@ -189,8 +185,10 @@ std::string write_report(const ReportRequest& request) {
         write_edges(pred, mesh, d.read(0, "world_pos", shown[k]), d.dim());
       }
       g << "set title 'frame " << shown[k] << "'\nplot "
-        << quoted((plots / (base + "_truth.dat")).string()) << " with lines lc rgb '#999999' lw 2, "
-        << quoted((plots / (base + "_pred.dat")).string()) << " with lines lc rgb '#d62728' lw 1\n";
+        << gnuplot_quoted((plots / (base + "_truth.dat")).string())
+        << " with lines lc rgb '#999999' lw 2, "
+        << gnuplot_quoted((plots / (base + "_pred.dat")).string())
+        << " with lines lc rgb '#d62728' lw 1\n";
     }
     g << "unset multiplot\n";
     const fs::path script = plots / ("rollout_" + std::to_string(r) + ".gp");

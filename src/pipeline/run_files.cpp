@@ -28,6 +28,12 @@ void write_text_atomic(const std::string& path, const std::string& text) {
   out.commit();
 }
 
+std::string gnuplot_quoted(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
+  return q + "'";
+}
+
 void run_gnuplot(const std::string& script) {
   const std::string cmd = "gnuplot '" + script + "' 2>'" + script + ".log'";
   if (std::system(cmd.c_str()) != 0)

@@ -14,4 +14,7 @@ void write_text_atomic(const std::string& path, const std::string& text);
 // SCRIPT.log and an IoError names the script when gnuplot fails.
 void run_gnuplot(const std::string& script);
 
+// A gnuplot single-quoted string (a quote inside is doubled).
+std::string gnuplot_quoted(const std::string& s);
+
 }  // namespace bsms
