@@ -42,17 +42,35 @@ torch::Tensor Mlp::forward_reference(const torch::Tensor& x) {
 }
 
 torch::Tensor edge_features(const std::vector<torch::Tensor>& positions,
-                            const std::vector<int64_t>& fields, const EdgeIndex& edges) {
-  std::vector<torch::Tensor> parts;
-  for (int64_t f : fields) {
+                            const std::vector<int64_t>& fields, const EdgeIndex& edges,
+                            const EdgeStretch& stretch) {
+  auto check = [&](int64_t f) {
     if (f < 0 || f >= static_cast<int64_t>(positions.size())) {
       throw InputError("edge features: position field " + std::to_string(f) + " requested, " +
                        std::to_string(positions.size()) + " given");
     }
+  };
+  auto length = [&](int64_t f) {
+    const auto& p = positions[f];
+    return (p.index_select(0, edges.senders) - p.index_select(0, edges.receivers))
+        .norm(2, {1}, /*keepdim=*/true);
+  };
+  std::vector<torch::Tensor> parts;
+  for (int64_t f : fields) {
+    check(f);
     const auto& p = positions[f];
     auto d = p.index_select(0, edges.senders) - p.index_select(0, edges.receivers);
     parts.push_back(d);
     parts.push_back(d.norm(2, {1}, /*keepdim=*/true));
+  }
+  if (stretch.enabled()) {
+    check(stretch.reference);
+    check(stretch.current);
+    // Coincident reference nodes (a degenerate edge) read as unstretched.
+    const auto rest = length(stretch.reference);
+    const auto strain = torch::where(rest > 0, length(stretch.current) / rest.clamp_min(1e-30) - 1,
+                                     torch::zeros_like(rest));
+    parts.push_back(strain * stretch.inv_scale);
   }
   return torch::cat(parts, 1);
 }

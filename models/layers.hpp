@@ -38,10 +38,23 @@ class Mlp : public torch::nn::Module {
   bool layer_norm_;
 };
 
+// The stretch of an edge between a reference and a current position field: the rotation-
+// invariant strain (|Δp_current| / |Δp_reference| - 1) times `inv_scale` (typically 1 / the RMS
+// strain of the training data, so that deformation reaches the first layer at O(1) instead of as a
+// small difference of two O(1) lengths). reference < 0: no stretch channel.
+struct EdgeStretch {
+  int64_t reference = -1;
+  int64_t current = -1;
+  double inv_scale = 1.0;
+  bool enabled() const { return reference >= 0; }
+};
+
 // Edge features [Δp, |Δp|] for each position field in `fields` (Δp = p[sender] - p[receiver]),
-// concatenated: positions[f] [N, d_f] -> [E, Σ_f (d_f + 1)].
+// concatenated, then the stretch channel when `stretch` is enabled:
+// positions[f] [N, d_f] -> [E, Σ_f (d_f + 1) (+ 1)].
 torch::Tensor edge_features(const std::vector<torch::Tensor>& positions,
-                            const std::vector<int64_t>& fields, const EdgeIndex& edges);
+                            const std::vector<int64_t>& fields, const EdgeIndex& edges,
+                            const EdgeStretch& stretch = {});
 
 // How the first edge-MLP layer is evaluated. kProjection: W·[f, v_i, v_j] = W_f f + (W_i v)[i] +
 // (W_j v)[j] with node-sized matmuls and fused gather/segment-sum kernels. kConcat: the plain

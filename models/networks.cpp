@@ -30,6 +30,16 @@ GraphModelOptions resolved(GraphModelOptions o) {
       }
     }
   }
+  if (o.edge_set_stretch.size() > o.edge_set_fields.size())
+    throw InputError("graph model: more stretch entries than edge sets");
+  for (const auto& st : o.edge_set_stretch) {
+    if (!st.enabled()) continue;
+    const int64_t fields = static_cast<int64_t>(o.position_dims.size());
+    if (st.current < 0 || st.reference >= fields || st.current >= fields ||
+        o.position_dims[st.reference] != o.position_dims[st.current] || !(st.inv_scale > 0))
+      throw InputError(
+          "graph model: a stretch channel needs two position fields of one size and a scale > 0");
+  }
   if (o.num_levels < 1) throw InputError("graph model: num_levels must be >= 1");
   if (o.message_passing_steps < 1) {
     throw InputError("graph model: message_passing_steps must be >= 1");
@@ -44,7 +54,7 @@ GraphModel::GraphModel(GraphModelOptions options) : options_(resolved(std::move(
 int64_t GraphModel::edge_feature_size(size_t set) const {
   int64_t size = 0;
   for (int64_t f : options_.edge_set_fields[set]) size += options_.position_dims[f] + 1;
-  return size;
+  return size + (stretch(set).enabled() ? 1 : 0);
 }
 
 EdgeIndex GraphModel::edge_set(const GraphHierarchy& graph, int level, size_t set) {
@@ -121,7 +131,7 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
     feats.clear();
     for (size_t s = 0; s < num_sets; ++s) {
       idx.push_back(edge_set(graph, k, s));
-      feats.push_back(edge_features(pos, options_.edge_set_fields[s], idx.back()));
+      feats.push_back(edge_features(pos, options_.edge_set_fields[s], idx.back(), stretch(s)));
     }
   };
   std::vector<std::vector<torch::Tensor>> level_pos(levels);
@@ -222,8 +232,9 @@ torch::Tensor MeshGraphNets::forward(const torch::Tensor& nodes,
   for (size_t s = 0; s < num_edge_sets(); ++s) sets.push_back(edge_set(graph, 0, s));
   for (const auto& set : sets) edges.push_back(&set);
   for (size_t s = 0; s < num_edge_sets(); ++s) {
-    latents.push_back(run_mlp(*edge_encoders_[s],
-                              edge_features(positions, options_.edge_set_fields[s], *edges[s])));
+    latents.push_back(
+        run_mlp(*edge_encoders_[s],
+                edge_features(positions, options_.edge_set_fields[s], *edges[s], stretch(s))));
   }
   auto v = run_mlp(*node_encoder_, nodes);
   for (auto& block : blocks_) v = block->forward(v, latents, edges, mode_);

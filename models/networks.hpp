@@ -22,6 +22,8 @@ struct GraphModelOptions {
   // Per edge set, the position fields its edge features use: set 0 = mesh edges (e.g. {0, 1}),
   // set 1 = contact edges (e.g. {1}). Empty: one edge set using every position field.
   std::vector<std::vector<int64_t>> edge_set_fields;
+  // Per edge set, an optional stretch channel (layers.hpp); missing entries: none.
+  std::vector<EdgeStretch> edge_set_stretch;
   int num_levels = 1;              // BSMS: levels of the multilevel graph (>= 1)
   int message_passing_steps = 15;  // MeshGraphNets
 };
@@ -46,6 +48,9 @@ class GraphModel : public torch::nn::Module {
  protected:
   int64_t edge_feature_size(size_t set) const;
   size_t num_edge_sets() const { return options_.edge_set_fields.size(); }
+  EdgeStretch stretch(size_t set) const {
+    return set < options_.edge_set_stretch.size() ? options_.edge_set_stretch[set] : EdgeStretch{};
+  }
   // Edge index `set` of `level`, or an empty set when the graph has fewer sets.
   static EdgeIndex edge_set(const GraphHierarchy& graph, int level, size_t set);
   // mlp.forward, or mlp.forward_reference in EdgeMlpMode::kConcat.

@@ -16,8 +16,8 @@ out_dir=$2
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 bsms=$build_dir/bsms
 [[ -x $bsms ]] || { echo "demo: $bsms not found; build first (make build)" >&2; exit 2; }
-trajectories=${DEMO_TRAJECTORIES:-30}
-train_seconds=${DEMO_TRAIN_SECONDS:-240}
+trajectories=${DEMO_TRAJECTORIES:-100}
+train_seconds=${DEMO_TRAIN_SECONDS:-360}
 threads=${DEMO_THREADS:-0}
 data=$out_dir/data
 mkdir -p "$out_dir"
@@ -41,7 +41,7 @@ for model in bsms mgn; do
   run=$out_dir/$model
   rm -rf "$run"
   "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
-    --set "data=$data" --set "time_budget_s=$train_seconds" --set steps=5000 --set valid_every=250
+    --set "data=$data" --set "time_budget_s=$train_seconds" --set steps=100000 --set valid_every=500
   stage "bsms rollout: $model on the test split"
   "$bsms" rollout "$run" --split test --threads "$threads"
 done

@@ -24,9 +24,10 @@ BSMS_COMMAND(
       bsms::cli::add_threads_option(sub, r.threads);
       sub.footer(
           "Writes RUN/config.json (resolved), RUN/checkpoints/latest.pt (model, normalizers,\n"
-          "optimizer, step; atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss, lr)\n"
-          "and RUN/train_stats.json. Multilevel graphs are built on first use and cached in\n"
-          "DATA/multilevel/ (or RUN/multilevel/ when the data folder is read-only).");
+          "optimizer, step; atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss,\n"
+          "valid_baseline = the loss of predicting zero, lr) and RUN/train_stats.json.\n"
+          "Multilevel graphs are built on first use and cached in DATA/multilevel/ (or\n"
+          "RUN/multilevel/ when the data folder is read-only).");
       sub.callback([args] { bsms::train(args->request); });
     });
 

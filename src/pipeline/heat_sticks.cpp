@@ -19,6 +19,7 @@
 #include "models/graph_ops.hpp"
 #include "models/proximity_hierarchy.hpp"
 #include "pipeline/run_files.hpp"
+#include "pipeline/train_config.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {
@@ -123,11 +124,14 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
   std::uniform_real_distribution<double> value(-1.0, 1.0), offset(0.0, 1.0);
   ProgressBar bar(std::string("train ") + spec.label, o.steps);
   Stopwatch clock;
+  OptimizerConfig schedule;  // the trainer's learning-rate schedule (no warm-up here)
+  schedule.lr = o.lr;
+  schedule.lr_final = o.lr_final;
   for (int64_t step = 0; step < o.steps; ++step) {
     const double progress = static_cast<double>(step) / static_cast<double>(o.steps);
     for (auto& group : optimizer.param_groups()) {
       static_cast<torch::optim::AdamOptions&>(group.options())
-          .lr(o.lr * std::pow(o.lr_final / o.lr, progress));
+          .lr(learning_rate(schedule, step, progress));
     }
     std::vector<GraphHierarchy> graphs;
     std::vector<torch::Tensor> inputs, positions, truth;

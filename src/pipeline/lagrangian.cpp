@@ -23,6 +23,7 @@ Json to_json(const LagrangianSpec& s) {
          {"num_node_types", s.num_node_types},
          {"position_scale", s.position_scale},
          {"contact_radius", s.contact_radius},
+         {"strain_scale", s.strain_scale},
          {"public_layout", s.public_layout},
          {"multilevel", s.multilevel}};
   if (s.has_walls()) {
@@ -87,6 +88,8 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   s.num_node_types = r.get<int>("num_node_types");
   s.position_scale = r.get<double>("position_scale");
   s.contact_radius = r.get<double>("contact_radius");
+  s.strain_scale = r.opt<double>("strain_scale", 0.0);
+  require(s.strain_scale >= 0, r.context("strain_scale"), ">= 0 (0 = no strain channel)");
   s.public_layout = r.get<bool>("public_layout");
   s.multilevel = r.get<bool>("multilevel");
   if (r.has("walls")) {
@@ -107,6 +110,20 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   require(s.dim >= 1 && s.dim <= 3, r.context("dim"), "1, 2 or 3");
   require(s.position_scale > 0, r.context("position_scale"), "> 0");
   return s;
+}
+
+void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
+  double radius = 1.5 * mean_edge;
+  const Json parsed = Json::parse(scene_json, nullptr, false);
+  if (parsed.is_object()) {
+    const Json& scene =
+        parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
+    const Json background = scene.value("background", Json::object());
+    if (background.is_object() && background.contains("element_size") &&
+        background["element_size"].is_number())
+      radius = std::max(radius, 1.5 * background["element_size"].get<double>());
+  }
+  spec.contact_radius = radius;
 }
 
 bool is_predicted_node(int32_t node_type, bool public_layout) {
@@ -131,10 +148,36 @@ torch::Tensor edges_to_tensor(const EdgeList& edges, bool drop_loops) {
 
 }  // namespace
 
+EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, double radius,
+                       const CsrGraph& mesh_graph) {
+  const EdgeList near = radius_pairs(points, radius, &mesh_graph);
+  const int dim = mesh.dim;
+  const double far2 = (4.0 * radius) * (4.0 * radius);
+  EdgeList kept;
+  kept.data.reserve(near.data.size());
+  for (int64_t e = 0; e < near.size(); ++e) {
+    const int64_t i = near.sender(e), j = near.receiver(e);
+    bool keep = mesh.body_id.empty() || mesh.body_id[i] != mesh.body_id[j];
+    if (!keep) {
+      double d2 = 0;
+      for (int a = 0; a < dim; ++a) {
+        const double d = mesh.mesh_pos[i * dim + a] - mesh.mesh_pos[j * dim + a];
+        d2 += d * d;
+      }
+      keep = d2 >= far2;
+    }
+    if (keep) {
+      kept.data.push_back(i);
+      kept.data.push_back(j);
+    }
+  }
+  return kept;
+}
+
 Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
                                     const std::vector<torch::Tensor>& noise) const {
   Batch b;
-  std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs;
+  std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises;
   std::vector<GraphHierarchy> graphs;
   graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
@@ -149,8 +192,12 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
       predicted[i] = is_predicted_node(mesh.node_type[i], spec_.public_layout);
     auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
     torch::Tensor cur = s.cur;
-    if (g < noise.size() && noise[g].defined())
-      cur = cur + noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
+    torch::Tensor added = torch::zeros_like(cur);
+    if (g < noise.size() && noise[g].defined()) {
+      added = noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
+      cur = cur + added;
+    }
+    noises.push_back(added);
     auto velocity = cur - s.prev;
     auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
                        .to(torch::kFloat32);
@@ -180,7 +227,8 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
       const auto x = cur.to(torch::kFloat64).contiguous();
       RowMatrixXd points = Eigen::Map<const RowMatrixXd>(x.data_ptr<double>(), n, spec_.dim);
       const MultilevelGraph& ml = s.graphs->multilevel;
-      const EdgeList contact = radius_pairs(points, spec_.contact_radius, &ml.levels[0].graph);
+      const EdgeList contact =
+          contact_pairs(points, mesh, spec_.contact_radius, ml.levels[0].graph);
       b.contact_edges += contact.size();
       std::vector<std::vector<torch::Tensor>> extra;
       if (spec_.multilevel && ml.num_levels() > 1) {
@@ -199,6 +247,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   b.mask = torch::cat(masks, 0);
   b.cur = torch::cat(curs, 0);
   b.prev = torch::cat(prevs, 0);
+  b.noise = torch::cat(noises, 0);
   if (graphs.size() == 1) {
     b.graph = std::move(graphs[0]);
   } else {
@@ -209,8 +258,12 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   return b;
 }
 
-torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor& next) const {
-  return next - 2 * batch.cur + batch.prev;
+torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor& next,
+                                        double noise_gamma) const {
+  auto target_pos = next;
+  if (noise_gamma != 1.0 && batch.noise.defined())
+    target_pos = next + (1.0 - noise_gamma) * batch.noise;
+  return target_pos - 2 * batch.cur + batch.prev;
 }
 
 torch::Tensor LagrangianAdapter::integrate(const Batch& batch, const torch::Tensor& accel,

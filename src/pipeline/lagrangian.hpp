@@ -2,7 +2,9 @@
 // into the next state. Inputs per node: velocity x_t - x_{t-1}, a one-hot node type and, in a
 // walled box, the clipped distances to the walls; positions:
 // mesh X and world x (both divided by `position_scale`); edge sets: mesh edges (X and x offsets)
-// and, when the scene has contact, contact edges (x offsets) carried to every level by A·Aᶜ·A.
+// plus, when strain_scale > 0, the edge strain |x_ij| / |X_ij| - 1 over strain_scale) and, when the
+// scene has contact, contact edges (x offsets) carried to every level by A·Aᶜ·A. Contact edges
+// join nodes of different bodies (or of one body, far apart in the reference configuration).
 // Output: the acceleration x_{t+1} - 2 x_t + x_{t-1} (m per frame²).
 #pragma once
 
@@ -20,8 +22,11 @@ struct LagrangianSpec {
   int num_node_types = 4;
   double position_scale = 1.0;  // m; positions are divided by it (mean mesh edge length)
   double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
-  bool public_layout = false;   // node-type codes of public MeshGraphNets data
-  bool multilevel = true;       // false: level 0 only (MeshGraphNets)
+  // RMS strain of the training data's mesh edges: mesh edges get the strain channel divided by
+  // it (0 = no strain channel, as in runs trained before it existed).
+  double strain_scale = 0.0;
+  bool public_layout = false;  // node-type codes of public MeshGraphNets data
+  bool multilevel = true;      // false: level 0 only (MeshGraphNets)
   // Walls of the domain: per axis, the lower and upper wall coordinate (NaN: no wall on that
   // side). With wall_radius > 0 every node gets 2 x dim inputs: its distance to each wall
   // divided by wall_radius and clipped to [0, 1] (1 = far or no wall).
@@ -35,6 +40,17 @@ struct LagrangianSpec {
 };
 Json to_json(const LagrangianSpec& spec);
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file);
+
+// Contact radius "auto": the range at which two bodies of the scene's solver already interact,
+// 1.5 background cells (the kernel support; `background.element_size` of the scene JSON), and at
+// least 1.5 mean mesh edges (public data without a background).
+void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge);
+
+// Contact candidates: pairs closer than `radius` in `points` [N, dim] that the mesh does not join
+// and that belong to different bodies, or to one body but lie ≥ 4 radii apart in mesh_pos
+// (self-contact). Both directions, sorted like radius_pairs.
+EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, double radius,
+                       const CsrGraph& mesh_graph);
 
 // Nodes whose next position the model predicts (others follow their prescribed path).
 bool is_predicted_node(int32_t node_type, bool public_layout);
@@ -63,6 +79,7 @@ struct Batch {
   std::vector<torch::Tensor> positions;  // {X, x} / position_scale, [N, dim] each
   torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
   torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
+  torch::Tensor noise;                   // [N, dim] noise added to cur (zeros without noise)
   GraphHierarchy graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
 };
@@ -76,7 +93,11 @@ class LagrangianAdapter {
   Batch make_batch(const std::vector<FrameState>& states,
                    const std::vector<torch::Tensor>& noise = {}) const;
   // Target acceleration for the batch from next positions [N, dim] (concatenated like the batch).
-  torch::Tensor target(const Batch& batch, const torch::Tensor& next) const;
+  // With training noise n on the current positions, the target next position is
+  // next + (1 - noise_gamma) n (MeshGraphNets' convention): gamma 1 asks the model to undo the
+  // noise in position, gamma 0 keeps the true velocity.
+  torch::Tensor target(const Batch& batch, const torch::Tensor& next,
+                       double noise_gamma = 1.0) const;
   // x_{t+1} = 2 x_t - x_{t-1} + a on predicted nodes, `prescribed` [N, dim] elsewhere.
   torch::Tensor integrate(const Batch& batch, const torch::Tensor& accel,
                           const torch::Tensor& prescribed) const;

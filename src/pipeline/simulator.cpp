@@ -19,6 +19,7 @@ LearnedSimulator::LearnedSimulator(const LagrangianSpec& spec, const ModelConfig
   o.position_dims = {spec.dim, spec.dim};                    // mesh X, world x
   o.edge_set_fields = {{0, 1}};                              // mesh edges: both offsets
   if (spec.has_contact()) o.edge_set_fields.push_back({1});  // contact edges: world offsets
+  if (spec.strain_scale > 0) o.edge_set_stretch = {EdgeStretch{0, 1, 1.0 / spec.strain_scale}};
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
   if (config.type == "bsms") {
@@ -45,13 +46,25 @@ torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
 
 torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target,
                                      bool accumulate) {
-  if (accumulate) {
-    torch::NoGradGuard no_grad;
-    input_norm_->accumulate(batch.inputs);
-    output_norm_->accumulate(target.index({batch.mask}));
-  }
+  if (accumulate) accumulate_statistics(batch, target);
   const auto prediction = forward_normalized(batch);
   const auto error = (prediction - output_norm_->normalize(target)).pow(2).sum(1);
+  return error.index({batch.mask}).mean();
+}
+
+void LearnedSimulator::accumulate_statistics(const Batch& batch, const torch::Tensor& target) {
+  torch::NoGradGuard no_grad;
+  input_norm_->accumulate(batch.inputs);
+  output_norm_->accumulate(target.index({batch.mask}));
+}
+
+torch::Tensor LearnedSimulator::zero_prediction_loss(const Batch& batch,
+                                                     const torch::Tensor& target) const {
+  torch::NoGradGuard no_grad;
+  const auto error =
+      (output_norm_->normalize(torch::zeros_like(target)) - output_norm_->normalize(target))
+          .pow(2)
+          .sum(1);
   return error.index({batch.mask}).mean();
 }
 

@@ -22,6 +22,11 @@ class LearnedSimulator : public torch::nn::Module {
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
   // raw acceleration [N, dim]. With `accumulate`, normalizer statistics are updated first.
   torch::Tensor loss(const Batch& batch, const torch::Tensor& target, bool accumulate);
+  // Adds the batch's inputs and (predicted nodes') targets to the normalizer statistics.
+  void accumulate_statistics(const Batch& batch, const torch::Tensor& target);
+  // The loss of predicting zero acceleration, in the same normalised units as loss(): the
+  // reference a model must beat (no gradient).
+  torch::Tensor zero_prediction_loss(const Batch& batch, const torch::Tensor& target) const;
   // Raw acceleration [N, dim] predicted for the batch.
   torch::Tensor predict(const Batch& batch);
 

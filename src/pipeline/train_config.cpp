@@ -1,5 +1,8 @@
 #include "pipeline/train_config.hpp"
 
+#include <algorithm>
+#include <cmath>
+
 namespace bsms {
 
 TrainConfig parse_train_config(const Json& json, const std::string& file) {
@@ -55,6 +58,12 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     }
     c.features.noise_std = f.opt<double>("noise_std", c.features.noise_std);
     require(c.features.noise_std >= 0, f.context("noise_std"), ">= 0");
+    c.features.noise_gamma = f.opt<double>("noise_gamma", c.features.noise_gamma);
+    require(c.features.noise_gamma >= 0 && c.features.noise_gamma <= 1, f.context("noise_gamma"),
+            "in [0, 1]");
+    c.features.strain = f.opt<std::string>("strain", c.features.strain);
+    require(c.features.strain == "auto" || c.features.strain == "off", f.context("strain"),
+            "\"auto\" or \"off\"");
     c.features.num_node_types = f.opt<int>("num_node_types", c.features.num_node_types);
     require(c.features.num_node_types >= 0 && c.features.num_node_types <= 64,
             f.context("num_node_types"), "in 0..64 (0 = auto)");
@@ -70,6 +79,8 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.optimizer.lr_final = o.opt<double>("lr_final", c.optimizer.lr_final);
     require(c.optimizer.lr_final > 0 && c.optimizer.lr_final <= c.optimizer.lr,
             o.context("lr_final"), "in (0, lr]");
+    c.optimizer.warmup_steps = o.opt<int64_t>("warmup_steps", c.optimizer.warmup_steps);
+    require(c.optimizer.warmup_steps >= 0, o.context("warmup_steps"), ">= 0");
     c.optimizer.batch_size = o.opt<int>("batch_size", c.optimizer.batch_size);
     require(c.optimizer.batch_size >= 1 && c.optimizer.batch_size <= 1024, o.context("batch_size"),
             "in 1..1024");
@@ -77,6 +88,13 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
   }
   top.finish();
   return c;
+}
+
+double learning_rate(const OptimizerConfig& o, int64_t step, double progress) {
+  const double decayed = o.lr * std::pow(o.lr_final / o.lr, std::clamp(progress, 0.0, 1.0));
+  if (step >= o.warmup_steps) return decayed;
+  const double ramp = static_cast<double>(step + 1) / static_cast<double>(o.warmup_steps);
+  return decayed * (0.01 + 0.99 * ramp);
 }
 
 Json to_json(const TrainConfig& c) {
@@ -98,11 +116,14 @@ Json to_json(const TrainConfig& c) {
               {"features",
                {{"contact_radius", contact},
                 {"noise_std", c.features.noise_std},
+                {"noise_gamma", c.features.noise_gamma},
+                {"strain", c.features.strain},
                 {"num_node_types", c.features.num_node_types},
                 {"walls", c.features.walls}}},
               {"optimizer",
                {{"lr", c.optimizer.lr},
                 {"lr_final", c.optimizer.lr_final},
+                {"warmup_steps", c.optimizer.warmup_steps},
                 {"batch_size", c.optimizer.batch_size}}}};
 }
 

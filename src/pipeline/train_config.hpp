@@ -23,30 +23,43 @@ struct FeatureConfig {
   // length); 0: off; > 0: this radius (m).
   double contact_radius = -1.0;
   double noise_std = 3e-4;  // Gaussian noise on input positions (m)
-  int num_node_types = 0;   // one-hot width; 0 = auto (max node_type in training data + 1)
+  // Share of the noise the target position keeps undoing (MeshGraphNets' noise_gamma): the
+  // target next position is next + (1 - gamma) * noise. 1: correct the position; 0: keep the
+  // true velocity.
+  double noise_gamma = 1.0;
+  // Strain channel on mesh edges (|x_ij| / |X_ij| - 1 over the training data's RMS strain):
+  // "auto" = on, "off".
+  std::string strain = "auto";
+  int num_node_types = 0;  // one-hot width; 0 = auto (max node_type in training data + 1)
   // Distance-to-wall inputs (GNS style): "auto" = on when the dataset's scene is a box
   // background with named wall boundaries; "off".
   std::string walls = "auto";
 };
 
 struct OptimizerConfig {
-  double lr = 1e-4;
-  double lr_final = 1e-6;  // exponential decay from lr to lr_final over `steps`
-  int batch_size = 2;      // graphs per step (block-diagonal merge)
+  double lr = 1e-4;          // peak learning rate, reached after the warm-up
+  double lr_final = 1e-6;    // exponential decay from lr to lr_final over the run's progress
+  int64_t warmup_steps = 0;  // linear warm-up from lr / 100 over this many steps
+  int batch_size = 2;        // graphs per step (block-diagonal merge)
 };
 
 struct TrainConfig {
-  std::string data;                 // dataset folder (train.h5/valid.h5 or public {split}/ folders)
-  int64_t steps = 1000;             // training steps
-  double time_budget_s = 0.0;       // > 0: also stop after this many wall seconds of training
-  int64_t valid_every = 200;        // validation loss and checkpoint every this many steps
-  int valid_samples = 16;           // (trajectory, frame) samples in each validation
-  int64_t normalizer_steps = 1000;  // steps during which normalizers accumulate statistics
+  std::string data;            // dataset folder (train.h5/valid.h5 or public {split}/ folders)
+  int64_t steps = 1000;        // training steps
+  double time_budget_s = 0.0;  // > 0: also stop after this many wall seconds of training
+  int64_t valid_every = 200;   // validation loss and checkpoint every this many steps
+  int valid_samples = 64;      // (trajectory, frame) samples in each validation
+  // Batches whose statistics settle the normalizers before the first optimizer step.
+  int64_t normalizer_steps = 1000;
   uint64_t seed = 0;
   ModelConfig model;
   FeatureConfig features;
   OptimizerConfig optimizer;
 };
+
+// Learning rate at `step` when the run is `progress` (0..1) done: linear warm-up over
+// warmup_steps, then exponential decay from lr to lr_final as progress goes from 0 to 1.
+double learning_rate(const OptimizerConfig& optimizer, int64_t step, double progress);
 
 // Reads and validates `json` (from `file`); InputError names the file and the key.
 TrainConfig parse_train_config(const Json& json, const std::string& file);

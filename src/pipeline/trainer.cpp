@@ -17,6 +17,7 @@
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
+#include "models/layers.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
@@ -78,9 +79,28 @@ LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef
   return s;
 }
 
-double lr_at(const OptimizerConfig& o, int64_t step, int64_t steps) {
-  const double progress = steps > 1 ? static_cast<double>(step) / static_cast<double>(steps) : 0.0;
-  return o.lr * std::pow(o.lr_final / o.lr, std::min(progress, 1.0));
+// RMS strain |x_ij| / |X_ij| - 1 over the mesh edges of up to 64 training frames (deterministic
+// in the seed); 0 when the data does not deform (the strain channel is then left out).
+double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
+  double sum = 0;
+  int64_t count = 0;
+  for (int i = 0; i < 64; ++i) {
+    const SampleRef ref = draw_sample(data, seed ^ 0x9e3779b97f4a7c15ull, -3, i);
+    const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
+    const MeshGraphs& graphs = store.get(mesh);
+    const int64_t n = mesh.num_nodes();
+    auto frame = data.read(ref.trajectory, position_field(data), ref.frame, 1);
+    const auto x = torch::from_blob(frame.data(), {n, data.dim()}, torch::kFloat32);
+    const auto X = torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, data.dim()},
+                                    torch::kFloat32);
+    const auto& edges = graphs.hierarchy.edge_sets[0][0];
+    if (edges.num_edges() == 0) continue;
+    const auto strain = edge_features({X, x}, {}, edges, EdgeStretch{0, 1, 1.0});
+    sum += strain.square().sum().item<double>();
+    count += strain.size(0);
+  }
+  const double rms = count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
+  return rms > 1e-6 ? rms : 0.0;
 }
 
 // Resolves what the data decides: dimensions, node types, position scale, contact, levels.
@@ -117,10 +137,11 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
   const double edge = probe.get(train_data.mesh(0)).mean_edge_length;
   s.position_scale = edge > 0 ? edge : 1.0;
   if (config.features.contact_radius < 0) {
-    s.contact_radius = several_bodies ? 1.5 * edge : 0.0;
+    if (several_bodies) resolve_contact_radius(s, train_data.scene(), edge);
   } else {
     s.contact_radius = config.features.contact_radius;
   }
+  if (config.features.strain == "auto") s.strain_scale = rms_strain(train_data, probe, config.seed);
   // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
   if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
   if (config.model.type == "mgn") {
@@ -147,7 +168,7 @@ std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fr
   {
     AtomicOutput out(path);
     std::ofstream f(out.temp_path());
-    f << "step,wall_s,loss,valid_loss,lr\n";
+    f << "step,wall_s,loss,valid_loss,valid_baseline,lr\n";
     for (const auto& l : kept) f << l << '\n';
     f.close();
     out.commit();
@@ -231,18 +252,56 @@ TrainResult train(const TrainRequest& request) {
   for (int i = 0; i < config.valid_samples; ++i)
     valid_refs.push_back(draw_sample(valid_data, config.seed ^ 0x5bd1e995ull, -1, i));
 
+  // Validation loss and, beside it, the loss of predicting zero acceleration (same units).
+  struct Validation {
+    double loss = std::nan(""), baseline = std::nan("");
+  };
   auto validate = [&]() {
     torch::NoGradGuard no_grad;
     simulator->eval();
-    double total = 0;
+    double total = 0, zero = 0;
     for (const auto& ref : valid_refs) {
       LoadedSample s = load_sample(valid_data, store, ref);
       Batch batch = adapter.make_batch({s.state});
-      total += simulator->loss(batch, adapter.target(batch, s.next), false).item<double>();
+      const auto target = adapter.target(batch, s.next);
+      total += simulator->loss(batch, target, false).item<double>();
+      zero += simulator->zero_prediction_loss(batch, target).item<double>();
     }
     simulator->train();
-    return total / static_cast<double>(valid_refs.size());
+    const double n = static_cast<double>(valid_refs.size());
+    return Validation{total / n, zero / n};
   };
+  // One training batch: deterministic in (seed, step), noise included.
+  struct TrainBatch {
+    Batch batch;
+    torch::Tensor target;
+  };
+  auto training_batch = [&](int64_t index) {
+    std::vector<FrameState> states;
+    std::vector<torch::Tensor> nexts, noise;
+    auto generator =
+        at::detail::createCPUGenerator(splitmix64(config.seed ^ (0x1234567ull + index)));
+    for (int slot = 0; slot < config.optimizer.batch_size; ++slot) {
+      LoadedSample s =
+          load_sample(train_data, store, draw_sample(train_data, config.seed, index, slot));
+      states.push_back(s.state);
+      nexts.push_back(s.next);
+      noise.push_back(torch::randn(s.state.cur.sizes(), generator, torch::kFloat32) *
+                      config.features.noise_std);
+    }
+    TrainBatch b;
+    b.batch = adapter.make_batch(states, noise);
+    b.target = adapter.target(b.batch, torch::cat(nexts, 0), config.features.noise_gamma);
+    return b;
+  };
+  // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
+  // drawn apart from the training steps'). A resumed run has them in its checkpoint.
+  if (!request.resume) {
+    for (int64_t i = 0; i < config.normalizer_steps; ++i) {
+      const TrainBatch b = training_batch(-2 - i);
+      simulator->accumulate_statistics(b.batch, b.target);
+    }
+  }
 
   if (!request.quiet)
     std::cerr << "bsms train: " << config.model.type << ", " << resolved.levels << " level(s), "
@@ -253,10 +312,21 @@ TrainResult train(const TrainRequest& request) {
                       : std::string("off"))
               << ", " << threads << " thread(s) -> " << run << "\n";
 
-  ProgressBar bar("train", config.steps);
+  // With a time budget the bar counts seconds of the budget, not steps the run may never reach.
+  const bool by_time = config.time_budget_s > 0;
+  ProgressBar bar(by_time ? "train (s)" : "train",
+                  by_time ? static_cast<int64_t>(std::ceil(config.time_budget_s)) : config.steps);
   Stopwatch clock;
   std::vector<double> step_ms;
-  double last_loss = 0, last_valid = std::nan("");
+  double last_loss = 0;
+  Validation last_valid;
+  // Progress of the run, 0..1: the larger of the step and time-budget shares, so that the
+  // learning-rate schedule ends where the run really ends.
+  auto progress = [&](int64_t at_step) {
+    double p = static_cast<double>(at_step) / static_cast<double>(config.steps);
+    if (by_time) p = std::max(p, (wall_before + clock.seconds()) / config.time_budget_s);
+    return std::min(p, 1.0);
+  };
   const int64_t start_step = step;
   simulator->train();
   const int64_t stop_step =
@@ -264,25 +334,12 @@ TrainResult train(const TrainRequest& request) {
   while (step < stop_step) {
     if (config.time_budget_s > 0 && wall_before + clock.seconds() >= config.time_budget_s) break;
     Stopwatch step_clock;
-    const double lr = lr_at(config.optimizer, step, config.steps);
+    const double lr = learning_rate(config.optimizer, step, progress(step));
     for (auto& group : optimizer.param_groups())
       static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
-    std::vector<FrameState> states;
-    std::vector<torch::Tensor> nexts, noise;
-    auto generator =
-        at::detail::createCPUGenerator(splitmix64(config.seed ^ (0x1234567ull + step)));
-    for (int slot = 0; slot < config.optimizer.batch_size; ++slot) {
-      LoadedSample s =
-          load_sample(train_data, store, draw_sample(train_data, config.seed, step, slot));
-      states.push_back(s.state);
-      nexts.push_back(s.next);
-      noise.push_back(torch::randn(s.state.cur.sizes(), generator, torch::kFloat32) *
-                      config.features.noise_std);
-    }
-    Batch batch = adapter.make_batch(states, noise);
-    const auto target = adapter.target(batch, torch::cat(nexts, 0));
+    const TrainBatch b = training_batch(step);
     optimizer.zero_grad();
-    auto loss = simulator->loss(batch, target, step < config.normalizer_steps);
+    auto loss = simulator->loss(b.batch, b.target, false);
     loss.backward();
     optimizer.step();
     last_loss = loss.item<double>();
@@ -293,11 +350,11 @@ TrainResult train(const TrainRequest& request) {
     step_ms.push_back(step_clock.milliseconds());
     const bool checkpoint_now =
         step % config.valid_every == 0 || step == config.steps || step == stop_step;
-    std::string valid_text;
+    std::string valid_text = ",";
     if (checkpoint_now) {
       last_valid = validate();
       std::ostringstream v;
-      v << std::setprecision(6) << last_valid;
+      v << std::setprecision(6) << last_valid.loss << ',' << last_valid.baseline;
       valid_text = v.str();
       save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
     }
@@ -305,16 +362,21 @@ TrainResult train(const TrainRequest& request) {
         << ',' << valid_text << ',' << lr << '\n';
     if (checkpoint_now) log.flush();
     std::ostringstream extra;
-    extra << "loss " << std::setprecision(3) << last_loss << ", " << std::setprecision(3)
-          << 1000.0 / step_ms.back() << " steps/s";
-    if (!request.quiet) bar.update(step, extra.str());
+    extra << "step " << step << ", loss " << std::setprecision(3) << last_loss;
+    if (std::isfinite(last_valid.loss))
+      extra << ", valid " << std::setprecision(3) << last_valid.loss << " (zero "
+            << last_valid.baseline << ")";
+    extra << ", " << std::setprecision(3) << 1000.0 / step_ms.back() << " steps/s";
+    if (!request.quiet)
+      bar.update(by_time ? static_cast<int64_t>(wall_before + clock.seconds()) : step, extra.str());
   }
   // A time budget may stop between checkpoints: save where we are.
   if (step > start_step && step % config.valid_every != 0 && step != stop_step) {
     last_valid = validate();
     save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
-    log << step << ',' << wall_before + clock.seconds() << ',' << last_loss << ',' << last_valid
-        << ',' << lr_at(config.optimizer, step, config.steps) << '\n';
+    log << step << ',' << wall_before + clock.seconds() << ',' << last_loss << ','
+        << last_valid.loss << ',' << last_valid.baseline << ','
+        << learning_rate(config.optimizer, step, progress(step)) << '\n';
   }
   log.close();
   if (!request.quiet) bar.finish();
@@ -323,16 +385,19 @@ TrainResult train(const TrainRequest& request) {
   std::sort(sorted.begin(), sorted.end());
   result.steps = step;
   result.final_loss = last_loss;
-  result.final_valid_loss = last_valid;
+  result.final_valid_loss = last_valid.loss;
   result.train_ms_per_step = sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
-  Json stats = {{"steps", step},
-                {"train_ms_per_step", result.train_ms_per_step},
-                {"peak_rss_mb_train", peak_rss_mb()},
-                {"threads", threads},
-                {"wall_s", wall_before + clock.seconds()},
-                {"final_loss", last_loss},
-                {"final_valid_loss", std::isfinite(last_valid) ? Json(last_valid) : Json(nullptr)},
-                {"num_parameters", simulator->num_parameters()}};
+  Json stats = {
+      {"steps", step},
+      {"train_ms_per_step", result.train_ms_per_step},
+      {"peak_rss_mb_train", peak_rss_mb()},
+      {"threads", threads},
+      {"wall_s", wall_before + clock.seconds()},
+      {"final_loss", last_loss},
+      {"final_valid_loss", std::isfinite(last_valid.loss) ? Json(last_valid.loss) : Json(nullptr)},
+      {"final_valid_baseline",
+       std::isfinite(last_valid.baseline) ? Json(last_valid.baseline) : Json(nullptr)},
+      {"num_parameters", simulator->num_parameters()}};
   if (request.resume && fs::exists(run_stats_path(run))) {
     // Keep the median of the first session when this one ran no step.
     const Json old = load_json_file(run_stats_path(run));
@@ -342,8 +407,9 @@ TrainResult train(const TrainRequest& request) {
   write_json_atomic(run_stats_path(run), stats);
   if (!request.quiet)
     std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
-              << last_valid << ", " << result.train_ms_per_step << " ms/step (median), peak RSS "
-              << peak_rss_mb() << " MB\n";
+              << last_valid.loss << " (zero prediction " << last_valid.baseline << "), "
+              << result.train_ms_per_step << " ms/step (median), peak RSS " << peak_rss_mb()
+              << " MB\n";
   return result;
 }
 

@@ -50,7 +50,19 @@ TEST(TrainConfig, BadValuesNameTheKey) {
                 .find("features.noise_std"),
             std::string::npos);
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "stepz": 5})").find("stepz"), std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 1.5}})")
+                .find("features.noise_gamma"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"strain": "on"}})")
+                .find("features.strain"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "optimizer": {"warmup_steps": -1}})")
+                .find("optimizer.warmup_steps"),
+            std::string::npos);
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 0.1,
+    "strain": "off"}, "optimizer": {"warmup_steps": 50}})"),
+            "");
 }
 
 }  // namespace
