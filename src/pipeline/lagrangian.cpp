@@ -16,6 +16,18 @@ Json wall_json(double v) {
   return std::isnan(v) ? Json(nullptr) : Json(v);
 }
 
+// The background object of a dataset's scene JSON (a family file with a "scene" object, or a
+// scene); an empty object when there is none or the text is not JSON.
+Json scene_background(const std::string& scene_json, Json* scene_out = nullptr) {
+  const Json parsed = Json::parse(scene_json, nullptr, false);
+  if (!parsed.is_object()) return Json::object();
+  const Json& scene =
+      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
+  if (scene_out) *scene_out = scene;
+  const Json background = scene.value("background", Json::object());
+  return background.is_object() ? background : Json::object();
+}
+
 }  // namespace
 
 Json to_json(const LagrangianSpec& s) {
@@ -41,11 +53,8 @@ void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double r
   spec.wall_lo.clear();
   spec.wall_hi.clear();
   spec.wall_radius = 0.0;
-  const Json parsed = Json::parse(scene_json, nullptr, false);
-  if (!parsed.is_object()) return;
-  const Json& scene =
-      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
-  const Json background = scene.value("background", Json::object());
+  Json scene = Json::object();
+  const Json background = scene_background(scene_json, &scene);
   if (background.value("type", std::string()) != "box" || !background.contains("min") ||
       !background.contains("max") || !scene.contains("boundaries"))
     return;
@@ -114,15 +123,9 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
 
 void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
   double radius = 1.5 * mean_edge;
-  const Json parsed = Json::parse(scene_json, nullptr, false);
-  if (parsed.is_object()) {
-    const Json& scene =
-        parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
-    const Json background = scene.value("background", Json::object());
-    if (background.is_object() && background.contains("element_size") &&
-        background["element_size"].is_number())
-      radius = std::max(radius, 1.5 * background["element_size"].get<double>());
-  }
+  const Json background = scene_background(scene_json);
+  if (background.contains("element_size") && background["element_size"].is_number())
+    radius = std::max(radius, 1.5 * background["element_size"].get<double>());
   spec.contact_radius = radius;
 }
 
@@ -192,12 +195,14 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
       predicted[i] = is_predicted_node(mesh.node_type[i], spec_.public_layout);
     auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
     torch::Tensor cur = s.cur;
-    torch::Tensor added = torch::zeros_like(cur);
-    if (g < noise.size() && noise[g].defined()) {
-      added = noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
-      cur = cur + added;
+    if (!noise.empty()) {  // training: keep what was added, for the target's correction
+      torch::Tensor added = torch::zeros_like(cur);
+      if (g < noise.size() && noise[g].defined()) {
+        added = noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
+        cur = cur + added;
+      }
+      noises.push_back(added);
     }
-    noises.push_back(added);
     auto velocity = cur - s.prev;
     auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
                        .to(torch::kFloat32);
@@ -247,7 +252,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   b.mask = torch::cat(masks, 0);
   b.cur = torch::cat(curs, 0);
   b.prev = torch::cat(prevs, 0);
-  b.noise = torch::cat(noises, 0);
+  if (!noises.empty()) b.noise = torch::cat(noises, 0);
   if (graphs.size() == 1) {
     b.graph = std::move(graphs[0]);
   } else {

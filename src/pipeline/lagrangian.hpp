@@ -79,7 +79,7 @@ struct Batch {
   std::vector<torch::Tensor> positions;  // {X, x} / position_scale, [N, dim] each
   torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
   torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
-  torch::Tensor noise;                   // [N, dim] noise added to cur (zeros without noise)
+  torch::Tensor noise;                   // [N, dim] noise added to cur (undefined without noise)
   GraphHierarchy graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
 };

@@ -44,9 +44,7 @@ torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
   return model_->forward(input_norm_->normalize(batch.inputs), batch.positions, batch.graph);
 }
 
-torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target,
-                                     bool accumulate) {
-  if (accumulate) accumulate_statistics(batch, target);
+torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target) {
   const auto prediction = forward_normalized(batch);
   const auto error = (prediction - output_norm_->normalize(target)).pow(2).sum(1);
   return error.index({batch.mask}).mean();

@@ -20,8 +20,8 @@ class LearnedSimulator : public torch::nn::Module {
   LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& model, int levels);
 
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
-  // raw acceleration [N, dim]. With `accumulate`, normalizer statistics are updated first.
-  torch::Tensor loss(const Batch& batch, const torch::Tensor& target, bool accumulate);
+  // raw acceleration [N, dim]; the normalizers are settled beforehand (accumulate_statistics).
+  torch::Tensor loss(const Batch& batch, const torch::Tensor& target);
   // Adds the batch's inputs and (predicted nodes') targets to the normalizer statistics.
   void accumulate_statistics(const Batch& batch, const torch::Tensor& target);
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the

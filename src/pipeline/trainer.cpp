@@ -264,7 +264,7 @@ TrainResult train(const TrainRequest& request) {
       LoadedSample s = load_sample(valid_data, store, ref);
       Batch batch = adapter.make_batch({s.state});
       const auto target = adapter.target(batch, s.next);
-      total += simulator->loss(batch, target, false).item<double>();
+      total += simulator->loss(batch, target).item<double>();
       zero += simulator->zero_prediction_loss(batch, target).item<double>();
     }
     simulator->train();
@@ -339,7 +339,7 @@ TrainResult train(const TrainRequest& request) {
       static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
     const TrainBatch b = training_batch(step);
     optimizer.zero_grad();
-    auto loss = simulator->loss(b.batch, b.target, false);
+    auto loss = simulator->loss(b.batch, b.target);
     loss.backward();
     optimizer.step();
     last_loss = loss.item<double>();
