@@ -9,7 +9,7 @@ DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh
         nlohmann-json3-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
         libopenblas0-pthread gnuplot-nox
 
-.PHONY: deps build test demo hardcases bench format clean
+.PHONY: deps build test demo train-long hardcases bench format clean
 
 deps:
 	@missing=$$(for p in $(DEPS); do \
@@ -31,6 +31,9 @@ test: build
 
 demo: build
 	./scripts/demo.sh $(BUILD) $(RUNS)/demo
+
+train-long: build
+	./scripts/train_long.sh $(BUILD) $(RUNS)/long
 
 hardcases: build
 	./scripts/hardcases.sh $(BUILD) $(RUNS)/hardcases $(RUNS)/demo

@@ -84,17 +84,23 @@ std::string write_report(const ReportRequest& request) {
     for (size_t s = 0; s < steps.size(); ++s)
       curve << s + 1 << ' ' << steps[s].get<double>() << '\n';
     std::ofstream loss(plots / ("loss_" + std::to_string(r) + ".dat"));
+    std::ofstream valid_out(plots / ("valid_" + std::to_string(r) + ".dat"));
     std::ifstream log(fs::path(runs[r].dir) / "train_log.csv");
     std::string line;
     std::getline(log, line);
+    // Logs since issue 10 carry valid_baseline (the zero-prediction loss) before lr.
+    const bool has_baseline = line.find("valid_baseline") != std::string::npos;
     while (std::getline(log, line)) {
       std::stringstream cells(line);
-      std::string step, wall, value, valid;
+      std::string step, wall, value, valid, baseline;
       std::getline(cells, step, ',');
       std::getline(cells, wall, ',');
       std::getline(cells, value, ',');
       std::getline(cells, valid, ',');
-      loss << wall << ' ' << value << ' ' << (valid.empty() ? "NaN" : valid) << '\n';
+      if (has_baseline) std::getline(cells, baseline, ',');
+      loss << wall << ' ' << value << '\n';
+      if (!valid.empty())
+        valid_out << wall << ' ' << valid << ' ' << (baseline.empty() ? "NaN" : baseline) << '\n';
     }
   }
   double solver_ms = -1;
@@ -148,13 +154,19 @@ std::string write_report(const ReportRequest& request) {
       << gnuplot_quoted((plots / "loss_vs_wall.png").string())
       << "\nset title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
          "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
+    // Training losses first, validation and its zero-prediction reference drawn over them.
+    for (size_t r = 0; r < runs.size(); ++r)
+      g << (r ? ", " : "")
+        << gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string())
+        << " using 1:2 with lines lw 0.5 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + " train");
     for (size_t r = 0; r < runs.size(); ++r) {
-      const std::string data =
-          gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string());
-      g << (r ? ", " : "") << data << " using 1:2 with lines lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " train") << ", " << data
-        << " using 1:3 with points pt 7 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " valid");
+      const std::string valid =
+          gnuplot_quoted((plots / ("valid_" + std::to_string(r) + ".dat")).string());
+      g << ", " << valid << " using 1:2 with linespoints lw 2 pt 7 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + " valid") << ", " << valid
+        << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + " valid, predicting zero");
     }
     g << '\n';
     write_text_atomic(plots / "loss_vs_wall.gp", g.str());

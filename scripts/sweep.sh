@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Model-size sweep on the default scene (issue 10, "model only what a scene needs"): BSMS-GNN at
+# latent 32/64/128 (4 levels) and 3/5 levels (latent 32), MeshGraphNets at latent 32/128, each
+# trained for the same wall-clock budget on one dataset, rolled out on its test split, and one
+# report whose speed-against-error plot holds every point.
+# Usage: scripts/sweep.sh BUILD_DIR DATA_DIR OUT_DIR   (environment: SWEEP_SECONDS (180),
+# SWEEP_THREADS (0 = all)). DATA_DIR: a disks2d dataset, e.g. runs/demo/data after `make demo`.
+set -euo pipefail
+
+if [[ $# -ne 3 ]]; then
+  echo "usage: $0 BUILD_DIR DATA_DIR OUT_DIR" >&2
+  exit 2
+fi
+build_dir=$1
+data=$2
+out_dir=$3
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+bsms=$build_dir/bsms
+[[ -x $bsms ]] || { echo "sweep: $bsms not found; build first (make build)" >&2; exit 2; }
+[[ -f $data/train.h5 ]] || { echo "sweep: $data/train.h5 not found (run make demo first)" >&2; exit 2; }
+seconds=${SWEEP_SECONDS:-180}
+threads=${SWEEP_THREADS:-0}
+mkdir -p "$out_dir"
+
+# name model latent levels
+points=("bsms-l32 bsms 32 4" "bsms-l64 bsms 64 4" "bsms-l128 bsms 128 4" "bsms-l32-3lev bsms 32 3"
+        "bsms-l32-5lev bsms 32 5" "mgn-l32 mgn 32 0" "mgn-l128 mgn 128 0")
+runs=()
+for point in "${points[@]}"; do
+  read -r name model latent levels <<<"$point"
+  run=$out_dir/$name
+  runs+=("$run")
+  if [[ -f $run/rollout/metrics.json ]]; then continue; fi  # finished earlier: resumable
+  rm -rf "$run"
+  extra=(--set "model.latent=$latent")
+  [[ $model == bsms ]] && extra+=(--set "model.levels=$levels")
+  "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
+    --set "data=$data" --set "time_budget_s=$seconds" --set steps=10000000 --set valid_every=1000 \
+    "${extra[@]}"
+  "$bsms" rollout "$run" --split test --threads "$threads"
+done
+"$bsms" report "${runs[@]}" --out "$out_dir" \
+  --title "bsms sweep: latent width and levels on disks2d, ${seconds} s of training each"
+echo "sweep: $out_dir/report.md"

@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# The long recipe: BSMS-GNN and MeshGraphNets trained for the same wall-clock budget each
+# (default 60 min) on a larger disks2d dataset, rolled out on its test split, with a report whose
+# loss plot is against wall time. Resumable: rerun the same command after an interruption and each
+# model continues from its latest checkpoint (the budget counts the time already trained).
+# Usage: scripts/train_long.sh BUILD_DIR OUT_DIR   (environment: LONG_TRAJECTORIES (400),
+# LONG_TRAIN_SECONDS (3600), LONG_THREADS (0 = all), LONG_SEED (0))
+set -euo pipefail
+
+if [[ $# -ne 2 ]]; then
+  echo "usage: $0 BUILD_DIR OUT_DIR" >&2
+  exit 2
+fi
+build_dir=$1
+out_dir=$2
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+bsms=$build_dir/bsms
+[[ -x $bsms ]] || { echo "train-long: $bsms not found; build first (make build)" >&2; exit 2; }
+trajectories=${LONG_TRAJECTORIES:-400}
+train_seconds=${LONG_TRAIN_SECONDS:-3600}
+threads=${LONG_THREADS:-0}
+seed=${LONG_SEED:-0}
+data=$out_dir/data
+mkdir -p "$out_dir"
+
+# generate resumes by itself (same command, same folder).
+"$bsms" generate "$root/configs/scenes/disks2d.json" --out "$data" \
+  --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads"
+"$bsms" preprocess --data "$data" --seeding minave --levels auto --threads "$threads"
+
+for model in bsms mgn; do
+  run=$out_dir/$model
+  resume=()
+  [[ -f $run/checkpoints/latest.pt ]] && resume=(--resume)
+  "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
+    "${resume[@]}" --set "data=$data" --set "time_budget_s=$train_seconds" --set steps=10000000 \
+    --set valid_every=1000
+  "$bsms" rollout "$run" --split test --threads "$threads"
+done
+"$bsms" report "$out_dir/bsms" "$out_dir/mgn" --out "$out_dir" \
+  --title "bsms long recipe: disks2d ($trajectories trajectories, ${train_seconds} s of training each)"
+echo "train-long: $out_dir/report.md"
