@@ -224,6 +224,10 @@ Dataset Dataset::open_split(const std::string& dir, const std::string& split) {
                    folder.string() + "/)");
 }
 
+bool Dataset::has_split(const std::string& dir, const std::string& split) {
+  return fs::exists(fs::path(dir) / (split + ".h5")) || fs::is_directory(fs::path(dir) / split);
+}
+
 Dataset::~Dataset() = default;
 Dataset::Dataset(Dataset&&) noexcept = default;
 Dataset& Dataset::operator=(Dataset&&) noexcept = default;

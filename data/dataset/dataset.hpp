@@ -77,6 +77,8 @@ class Dataset {
   explicit Dataset(const std::string& location);
   // Opens split `split` of a dataset folder: DIR/{split}.h5 if present, else DIR/{split}/.
   static Dataset open_split(const std::string& dir, const std::string& split);
+  // Whether `dir` holds the split (as open_split looks for it); says nothing of its contents.
+  static bool has_split(const std::string& dir, const std::string& split);
   ~Dataset();
   Dataset(Dataset&&) noexcept;
   Dataset& operator=(Dataset&&) noexcept;

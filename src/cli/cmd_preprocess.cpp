@@ -74,12 +74,10 @@ void run_preprocess_data(const PreprocessOptions& options) {
   const std::string out =
       options.out.empty() ? (fs::path(options.data) / "multilevel").string() : options.out;
   std::vector<bsms::Dataset> splits;
+  // train is required; valid and test when present (a broken one is an error, not skipped).
   for (const char* split : {"train", "valid", "test"}) {
-    try {
+    if (std::string(split) == "train" || bsms::Dataset::has_split(options.data, split))
       splits.push_back(bsms::Dataset::open_split(options.data, split));
-    } catch (const bsms::InputError&) {
-      if (splits.empty() && std::string(split) == "train") throw;
-    }
   }
   int levels = parse_levels(options.levels);
   if (levels == 0) levels = bsms::auto_levels(splits[0].mesh(0), seeding);
@@ -101,7 +99,8 @@ void run_preprocess_data(const PreprocessOptions& options) {
       build.seed = options.seed;
       const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(bsms::to_mesh(mesh), build);
       bsms::write_multilevel_graph(
-          graph, (fs::path(out) / bsms::multilevel_cache_name(seeding, levels, key)).string());
+          graph, (fs::path(out) / bsms::multilevel_cache_name(seeding, levels, key, options.seed))
+                     .string());
       std::printf("%-18s %8d %10lld %12lld %8.1f\n", key.c_str(), graph.num_levels(),
                   static_cast<long long>(graph.levels[0].num_nodes()),
                   static_cast<long long>(graph.levels[0].graph.num_edges()), clock.milliseconds());

@@ -45,7 +45,8 @@ void apply_override(Json& config, const std::string& assignment, const std::stri
     // A list element by index: bodies.0.spacing=0.1 (the index must exist).
     if (node->is_array() && !keys[i].empty() &&
         keys[i].find_first_not_of("0123456789") == std::string::npos) {
-      const size_t index = std::stoul(keys[i]);
+      // More digits than any list has elements: out of range without std::stoul's overflow.
+      const size_t index = keys[i].size() > 9 ? node->size() : std::stoul(keys[i]);
       if (index >= node->size())
         throw InputError(source + ": --set '" + assignment + "': index " + keys[i] +
                          " is beyond the " + std::to_string(node->size()) + " elements of '" +

@@ -2,6 +2,9 @@
 #pragma once
 
 #include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
 #include <type_traits>
 
 namespace bsms {
@@ -15,6 +18,18 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
     } else if constexpr (std::is_integral_v<T>) {
       if (!value.is_number_integer())
         throw InputError(where.where() + " must be an integer, got " + value.dump());
+      // In the range of T: a negative seed must not wrap to 2^64 - 1.
+      const bool fits =
+          value.is_number_unsigned()
+              ? value.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<T>::max())
+              : value.get<int64_t>() >= static_cast<int64_t>(std::numeric_limits<T>::min()) &&
+                    (value.get<int64_t>() < 0 ||
+                     static_cast<uint64_t>(value.get<int64_t>()) <=
+                         static_cast<uint64_t>(std::numeric_limits<T>::max()));
+      if (!fits)
+        throw InputError(where.where() + " must be an integer in [" +
+                         std::to_string(std::numeric_limits<T>::min()) + ", " +
+                         std::to_string(std::numeric_limits<T>::max()) + "], got " + value.dump());
     } else if constexpr (std::is_floating_point_v<T>) {
       if (!value.is_number())
         throw InputError(where.where() + " must be a number, got " + value.dump());

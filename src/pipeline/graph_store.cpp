@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <iostream>
 
 #include "core/error.hpp"
 #include "preprocess/multilevel_file.hpp"
@@ -36,8 +37,12 @@ Mesh to_mesh(const TrajectoryMesh& m) {
   return make_mesh(m.dim, std::move(points), std::move(cells));
 }
 
-std::string multilevel_cache_name(Seeding seeding, int levels, const std::string& key) {
-  return to_string(seeding) + "-L" + std::to_string(levels) + "-" + key + ".h5";
+std::string multilevel_cache_name(Seeding seeding, int levels, const std::string& key,
+                                  uint64_t seed) {
+  const std::string name = seeding == Seeding::kRandom
+                               ? to_string(seeding) + "-s" + std::to_string(seed)
+                               : to_string(seeding);
+  return name + "-L" + std::to_string(levels) + "-" + key + ".h5";
 }
 
 int auto_levels(const TrajectoryMesh& mesh, Seeding seeding) {
@@ -47,8 +52,9 @@ int auto_levels(const TrajectoryMesh& mesh, Seeding seeding) {
   return build_multilevel_graph(to_mesh(mesh), options).num_levels();
 }
 
-GraphStore::GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs)
-    : seeding_(seeding), levels_(levels), cache_dirs_(std::move(cache_dirs)) {
+GraphStore::GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs,
+                       uint64_t seed)
+    : seeding_(seeding), levels_(levels), seed_(seed), cache_dirs_(std::move(cache_dirs)) {
   if (levels_ < 1) throw InputError("graph levels must be >= 1");
 }
 
@@ -60,11 +66,12 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
   entry->key = key;
   const Mesh core_mesh = to_mesh(mesh);
   entry->mesh_pos = core_mesh.points;
-  const std::string name = multilevel_cache_name(seeding_, levels_, key);
+  const std::string name = multilevel_cache_name(seeding_, levels_, key, seed_);
   bool loaded = false;
   for (const auto& dir : cache_dirs_) {
     const std::string path = (fs::path(dir) / name).string();
     if (!fs::exists(path)) continue;
+    std::string problem;
     try {
       MultilevelGraph cached = read_multilevel_graph(path);
       if (cached.num_levels() == levels_ && cached.levels[0].num_nodes() == mesh.num_nodes()) {
@@ -72,22 +79,37 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
         loaded = true;
         break;
       }
-    } catch (const InputError&) {
-      // A stale or damaged cache entry is rebuilt below.
+      problem = "holds " + std::to_string(cached.num_levels()) + " levels of " +
+                std::to_string(cached.levels.empty() ? 0 : cached.levels[0].num_nodes()) +
+                " nodes, expected " + std::to_string(levels_) + " of " +
+                std::to_string(mesh.num_nodes());
+    } catch (const InputError& e) {
+      problem = e.what();
     }
+    std::cerr << "bsms: warning: cached graph " << path << " not used (" << problem
+              << "); rebuilding it\n";
   }
   if (!loaded) {
     BuildOptions options;
     options.seeding = seeding_;
     options.num_levels = levels_;
+    options.seed = seed_;
     entry->multilevel = build_multilevel_graph(core_mesh, options);
+    std::string failure;
     for (const auto& dir : cache_dirs_) {
       try {
         write_multilevel_graph(entry->multilevel, (fs::path(dir) / name).string());
+        failure.clear();
         break;
-      } catch (const std::exception&) {
+      } catch (const std::exception& e) {
         // Not writable here: try the next folder; the graph stays in memory either way.
+        if (failure.empty()) failure = e.what();
       }
+    }
+    if (!failure.empty() && !warned_write_) {
+      warned_write_ = true;
+      std::cerr << "bsms: warning: graphs are kept in memory only, no cache folder took them ("
+                << failure << ")\n";
     }
   }
   entry->hierarchy = make_hierarchy(entry->multilevel, levels_);

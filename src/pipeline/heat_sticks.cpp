@@ -18,6 +18,7 @@
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
 #include "models/proximity_hierarchy.hpp"
+#include "pipeline/fit.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/train_config.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -122,17 +123,13 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
   torch::optim::Adam optimizer(r.model->parameters(), torch::optim::AdamOptions(o.lr));
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> value(-1.0, 1.0), offset(0.0, 1.0);
-  ProgressBar bar(std::string("train ") + spec.label, o.steps);
-  Stopwatch clock;
-  OptimizerConfig schedule;  // the trainer's learning-rate schedule (no warm-up here)
-  schedule.lr = o.lr;
-  schedule.lr_final = o.lr_final;
-  for (int64_t step = 0; step < o.steps; ++step) {
-    const double progress = static_cast<double>(step) / static_cast<double>(o.steps);
-    for (auto& group : optimizer.param_groups()) {
-      static_cast<torch::optim::AdamOptions&>(group.options())
-          .lr(learning_rate(schedule, step, progress));
-    }
+  FitOptions fit_options;  // the trainer's loop and schedule (no warm-up here)
+  fit_options.optimizer.lr = o.lr;
+  fit_options.optimizer.lr_final = o.lr_final;
+  fit_options.steps = o.steps;
+  fit_options.label = std::string("train ") + spec.label;
+  FitHooks hooks;
+  hooks.loss = [&](int64_t) {
     std::vector<GraphHierarchy> graphs;
     std::vector<torch::Tensor> inputs, positions, truth;
     for (int64_t b = 0; b < o.batch; ++b) {
@@ -150,20 +147,13 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
     for (const auto& g : graphs) parts.push_back(&g);
     const GraphHierarchy batch = merge_hierarchies(parts);
     auto pred = r.model->forward(torch::cat(inputs), {torch::cat(positions)}, batch);
-    auto loss = torch::mse_loss(pred, torch::cat(truth));
-    optimizer.zero_grad();
-    loss.backward();
-    optimizer.step();
-    const double value_now = loss.item<double>();
-    if (!std::isfinite(value_now)) {
-      throw NumericalError(std::string(spec.label) + " training step " + std::to_string(step) +
-                           ": loss is not finite (lower the learning rate)");
-    }
-    r.losses.push_back(value_now);
-    if (step + 1 < o.steps) bar.update(step + 1, "loss " + sci(value_now));
-  }
-  r.wall_s = clock.seconds();
-  bar.finish("loss " + sci(r.losses.back()));
+    return torch::mse_loss(pred, torch::cat(truth));
+  };
+  hooks.after_step = [&](const FitStep& s) {
+    r.losses.push_back(s.loss);
+    return std::string();
+  };
+  r.wall_s = fit(optimizer, fit_options, hooks).wall_s;
   r.model->eval();
   return r;
 }

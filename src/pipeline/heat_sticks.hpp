@@ -84,9 +84,10 @@ StickMixing stick_mixing(const GraphHierarchy& graph, const std::vector<int64_t>
 // The network of both models: BsmsGnn, 3 inputs, 1 output (T), 1-D positions.
 GraphModelOptions heat_model_options(int levels, int64_t latent);
 
-// Trains both models, tests them and writes to options.out: metrics.json, profiles.csv,
-// heat_sticks.md and plots/heat_sticks.png (the plot is left out, and the markdown says so, when
-// gnuplot is not installed). Progress bars go to stderr. Returns the metrics.
+// Trains both models with the trainer's loop and schedule (pipeline/fit), tests them and writes
+// to options.out: metrics.json, profiles.csv, heat_sticks.md and plots/heat_sticks.png (the plot
+// is left out, and the markdown says so, when gnuplot is not installed). Progress bars go to
+// stderr. Returns the metrics.
 Json run_heat_sticks(const HeatSticksOptions& options);
 
 }  // namespace bsms

@@ -2,7 +2,9 @@
 
 #include <torch/torch.h>
 
+#include <Eigen/Dense>
 #include <cmath>
+#include <map>
 #include <set>
 
 #include "core/radius_search.hpp"
@@ -46,6 +48,8 @@ Json to_json(const LagrangianSpec& s) {
     }
     j["walls"] = {{"lo", lo}, {"hi", hi}, {"radius", s.wall_radius}};
   }
+  if (s.has_momentum())
+    j["momentum"] = {{"radius", s.momentum_radius}, {"wall_range", s.momentum_wall_range}};
   return j;
 }
 
@@ -115,10 +119,169 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
     }
     w.finish();
   }
+  if (r.has("momentum")) {
+    JsonObjectReader m(r.raw("momentum"), r.context("momentum"));
+    s.momentum_radius = m.get<double>("radius");
+    s.momentum_wall_range = m.get<double>("wall_range");
+    require(s.momentum_radius > 0, m.context("radius"), "> 0");
+    require(s.momentum_wall_range >= 0, m.context("wall_range"), ">= 0");
+    m.finish();
+    require(s.has_walls(), r.context("momentum"), "walls beside it (momentum needs them)");
+  }
   r.finish();
   require(s.dim >= 1 && s.dim <= 3, r.context("dim"), "1, 2 or 3");
   require(s.position_scale > 0, r.context("position_scale"), "> 0");
   return s;
+}
+
+std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json) {
+  spec.momentum_radius = spec.momentum_wall_range = 0.0;
+  Json scene = Json::object();
+  const Json background = scene_background(scene_json, &scene);
+  if (scene.contains("gravity")) {
+    const Json& g = scene["gravity"];
+    bool zero = g.is_array();
+    for (const auto& v : g) zero = zero && v.is_number() && v.get<double>() == 0.0;
+    if (!zero) return "the scene has gravity";
+  }
+  if (background.value("type", std::string()) != "box" || !background.contains("element_size") ||
+      !background["element_size"].is_number() || background.value("rotation_deg", 0.0) != 0.0)
+    return "the scene has no axis-aligned box background with an element_size";
+  if (!spec.has_walls()) return "the model has no wall inputs";
+  const std::set<std::string> sides = {"left", "right", "bottom", "top", "back", "front"};
+  for (const auto& b : scene.value("boundaries", Json::array()))
+    if (!b.is_object() || !b.contains("group") || !b["group"].is_string() ||
+        sides.count(b["group"].get<std::string>()) == 0)
+      return "the scene has a boundary that is not a side of its box";
+  const double h = background["element_size"].get<double>();
+  if (!(h > 0)) return "the scene's element_size is not positive";
+  spec.momentum_radius = 3.0 * h;
+  spec.momentum_wall_range = 2.0 * h;
+  return "";
+}
+
+std::vector<float> lumped_masses(const TrajectoryMesh& mesh) {
+  const int dim = mesh.dim;
+  const int64_t n = mesh.num_nodes();
+  std::vector<float> mass(n, 0.0f);
+  if (mesh.cell_size != dim + 1) {
+    std::fill(mass.begin(), mass.end(), 1.0f);
+    return mass;
+  }
+  for (int64_t c = 0; c < mesh.num_cells(); ++c) {
+    const int32_t* v = &mesh.cells[c * mesh.cell_size];
+    Eigen::Matrix3d jac = Eigen::Matrix3d::Identity();
+    for (int k = 0; k < dim; ++k)
+      for (int a = 0; a < dim; ++a)
+        jac(a, k) = static_cast<double>(mesh.mesh_pos[v[k + 1] * dim + a]) -
+                    static_cast<double>(mesh.mesh_pos[v[0] * dim + a]);
+    double volume = std::abs(jac.determinant());
+    for (int k = 2; k <= dim; ++k) volume /= k;
+    for (int k = 0; k <= dim; ++k) mass[v[k]] += static_cast<float>(volume / (dim + 1));
+  }
+  return mass;
+}
+
+std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
+                                     const torch::Tensor& x, int64_t* num_groups) {
+  const int dim = spec.dim;
+  const int64_t n = mesh.num_nodes();
+  const auto xc = x.to(torch::kFloat64).contiguous();
+  const double* p = xc.data_ptr<double>();
+  // Bodies: their nodes, bounding boxes, and whether any node is kinematic or near a wall.
+  std::map<int32_t, int> body_index;
+  for (int64_t i = 0; i < n; ++i) body_index.emplace(mesh.body_id.empty() ? 0 : mesh.body_id[i], 0);
+  int nb = 0;
+  for (auto& [id, index] : body_index) index = nb++;
+  std::vector<std::vector<int64_t>> nodes(nb);
+  std::vector<char> bound(nb, 0);
+  std::vector<double> lo(static_cast<size_t>(nb) * dim, 1e300), hi(lo.size(), -1e300);
+  for (int64_t i = 0; i < n; ++i) {
+    const int b = body_index[mesh.body_id.empty() ? 0 : mesh.body_id[i]];
+    nodes[b].push_back(i);
+    if (spec.public_layout || mesh.node_type[i] != static_cast<int32_t>(NodeType::kNormal))
+      bound[b] = 1;
+    for (int a = 0; a < dim; ++a) {
+      const double v = p[i * dim + a];
+      lo[b * dim + a] = std::min(lo[b * dim + a], v);
+      hi[b * dim + a] = std::max(hi[b * dim + a], v);
+      if (spec.has_walls() && (v - spec.wall_lo[a] < spec.momentum_wall_range ||
+                               spec.wall_hi[a] - v < spec.momentum_wall_range))
+        bound[b] = 1;  // NaN walls compare false: no wall on that side
+    }
+  }
+  // Union of bodies closer than momentum_radius (bounding boxes first, then node pairs).
+  std::vector<int> parent(nb);
+  for (int b = 0; b < nb; ++b) parent[b] = b;
+  auto root = [&](int b) {
+    while (parent[b] != b) b = parent[b] = parent[parent[b]];
+    return b;
+  };
+  const double r = spec.momentum_radius, r2 = r * r;
+  for (int a = 0; a < nb; ++a) {
+    for (int b = a + 1; b < nb; ++b) {
+      bool apart = false;
+      for (int k = 0; k < dim; ++k)
+        apart = apart || lo[a * dim + k] - hi[b * dim + k] >= r ||
+                lo[b * dim + k] - hi[a * dim + k] >= r;
+      if (apart || root(a) == root(b)) continue;
+      bool close = false;
+      for (size_t i = 0; i < nodes[a].size() && !close; ++i) {
+        for (size_t j = 0; j < nodes[b].size() && !close; ++j) {
+          double d2 = 0;
+          for (int k = 0; k < dim; ++k) {
+            const double d = p[nodes[a][i] * dim + k] - p[nodes[b][j] * dim + k];
+            d2 += d * d;
+          }
+          close = d2 < r2;
+        }
+      }
+      if (close) parent[root(a)] = root(b);
+    }
+  }
+  std::vector<char> group_bound(nb, 0);
+  for (int b = 0; b < nb; ++b) group_bound[root(b)] |= bound[b];
+  std::vector<int64_t> id_of_root(nb, -1);
+  int64_t count = 0;
+  for (int b = 0; b < nb; ++b)
+    if (root(b) == b && !group_bound[b]) id_of_root[b] = count++;
+  std::vector<int64_t> group(n, -1);
+  for (int b = 0; b < nb; ++b)
+    for (int64_t i : nodes[b]) group[i] = id_of_root[root(b)];
+  *num_groups = count;
+  return group;
+}
+
+torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
+  if (!batch.group.defined() || batch.num_groups == 0) return accel;
+  const int64_t groups = batch.num_groups, dim = accel.size(1);
+  const auto inside = (batch.group >= 0).to(accel.dtype()).unsqueeze(1);  // [N, 1]
+  const auto g = batch.group.clamp_min(0);
+  const auto m = batch.mass.to(accel.dtype()).unsqueeze(1) * inside;  // [N, 1], 0 outside
+  auto sum = [&](const torch::Tensor& v) {                            // [N, k] -> [G, k], per group
+    return torch::zeros({groups, v.size(1)}, v.options()).index_add(0, g, v);
+  };
+  const auto total = sum(m).clamp_min(1e-30);  // [G, 1]
+  auto out = accel - (sum(m * accel) / total).index_select(0, g) * inside;
+  if (dim < 2) return out;
+  const auto x = batch.cur.to(accel.dtype());
+  const auto r = (x - (sum(m * x) / total).index_select(0, g)) * inside;  // [N, dim]
+  if (dim == 2) {
+    const auto rx = r.select(1, 0).unsqueeze(1), ry = r.select(1, 1).unsqueeze(1);
+    const auto torque =
+        sum(m * (rx * out.select(1, 1).unsqueeze(1) - ry * out.select(1, 0).unsqueeze(1)));
+    const auto inertia = sum(m * r.square().sum(1, true)).clamp_min(1e-30);
+    const auto alpha = (torque / inertia).index_select(0, g);  // [N, 1]
+    return out - alpha * torch::cat({-ry, rx}, 1);
+  }
+  // 3-D: inertia tensor sum m (|r|^2 I - r r^T), alpha = I^-1 torque, a -= alpha x r.
+  const auto torque = sum(m * torch::cross(r, out, 1));                // [G, 3]
+  const auto rr = (r.unsqueeze(2) * r.unsqueeze(1)).reshape({-1, 9});  // [N, 9]
+  const auto eye = torch::eye(3, accel.options()).reshape({1, 9});
+  auto inertia = sum(m * (r.square().sum(1, true) * eye - rr)).reshape({groups, 3, 3});
+  inertia = inertia + 1e-30 * torch::eye(3, accel.options());
+  const auto alpha = torch::linalg::solve(inertia, torque.unsqueeze(2), true).squeeze(2);
+  return out - torch::cross(alpha.index_select(0, g), r, 1);
 }
 
 void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
@@ -180,7 +343,8 @@ EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, do
 Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
                                     const std::vector<torch::Tensor>& noise) const {
   Batch b;
-  std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises;
+  std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises, groups,
+      masses;
   std::vector<GraphHierarchy> graphs;
   graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
@@ -227,6 +391,16 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
     masks.push_back(mask);
     curs.push_back(cur);
     prevs.push_back(s.prev);
+    if (spec_.has_momentum()) {
+      int64_t count = 0;
+      std::vector<int64_t> group = momentum_groups(spec_, mesh, cur, &count);
+      for (auto& v : group)
+        if (v >= 0) v += b.num_groups;
+      b.num_groups += count;
+      groups.push_back(torch::from_blob(group.data(), {n}, torch::kInt64).clone());
+      std::vector<float> mass = lumped_masses(mesh);
+      masses.push_back(torch::from_blob(mass.data(), {n}, torch::kFloat32).clone());
+    }
 
     if (spec_.has_contact()) {
       const auto x = cur.to(torch::kFloat64).contiguous();
@@ -253,6 +427,10 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   b.cur = torch::cat(curs, 0);
   b.prev = torch::cat(prevs, 0);
   if (!noises.empty()) b.noise = torch::cat(noises, 0);
+  if (!groups.empty()) {
+    b.group = torch::cat(groups, 0);
+    b.mass = torch::cat(masses, 0);
+  }
   if (graphs.size() == 1) {
     b.graph = std::move(graphs[0]);
   } else {

@@ -32,11 +32,19 @@ struct LagrangianSpec {
   // divided by wall_radius and clipped to [0, 1] (1 = far or no wall).
   std::vector<double> wall_lo, wall_hi;
   double wall_radius = 0.0;
+  // Momentum of free groups (an MPM scene without body forces conserves it exactly): bodies
+  // closer than momentum_radius (two kernel supports: they share grid nodes) form one group; a
+  // group whose nodes are all predicted and farther than momentum_wall_range from every wall
+  // keeps its linear and angular momentum, so the model's acceleration there is projected onto
+  // the momentum-conserving subspace (project_momentum). 0 = off (runs trained before it).
+  double momentum_radius = 0.0;
+  double momentum_wall_range = 0.0;
 
   bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
   int input_size() const { return dim + num_node_types + (has_walls() ? 2 * dim : 0); }
   int output_size() const { return dim; }
   bool has_contact() const { return contact_radius > 0; }
+  bool has_momentum() const { return momentum_radius > 0; }
 };
 Json to_json(const LagrangianSpec& spec);
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file);
@@ -45,6 +53,13 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
 // 1.5 background cells (the kernel support; `background.element_size` of the scene JSON), and at
 // least 1.5 mean mesh edges (public data without a background).
 void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge);
+
+// Momentum "auto", from the scene alone: on when the dataset's scene (a family file's "scene"
+// or a scene) has no gravity, a "box" background with element_size h whose only boundaries are
+// named box sides (walls), and the spec has those walls: then momentum_radius = 3 h (two
+// particles within two kernel supports of 1.5 h share grid nodes) and momentum_wall_range = 2 h
+// (the kernel support plus a cell of travel). Leaves momentum off otherwise and returns why.
+std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json);
 
 // Contact candidates: pairs closer than `radius` in `points` [N, dim] that the mesh does not join
 // and that belong to different bodies, or to one body but lie ≥ 4 radii apart in mesh_pos
@@ -82,7 +97,26 @@ struct Batch {
   torch::Tensor noise;                   // [N, dim] noise added to cur (undefined without noise)
   GraphHierarchy graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
+  // With spec.has_momentum(): each node's free group (-1: none; group ids are unique in the
+  // batch) and its lumped mass (reference cell volume / (dim + 1) per vertex; a uniform density
+  // cancels in the projection).
+  torch::Tensor group;  // [N] int64
+  torch::Tensor mass;   // [N] float32
+  int64_t num_groups = 0;
 };
+
+// Free groups of one state (see LagrangianSpec::momentum_radius): [N] group index or -1, and the
+// group count. `x` [N, dim] world positions.
+std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
+                                     const torch::Tensor& x, int64_t* num_groups);
+// Lumped node masses of a mesh: each simplex's reference volume shared equally by its vertices.
+std::vector<float> lumped_masses(const TrajectoryMesh& mesh);
+
+// `accel` [N, dim] with, on every free group of the batch, the mass-weighted mean (linear
+// momentum) and the rigid angular acceleration about the group's centre of mass (angular
+// momentum; 2-D and 3-D) removed; other nodes unchanged. Differentiable; identity when the batch
+// has no free group.
+torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel);
 
 class LagrangianAdapter {
  public:

@@ -45,8 +45,16 @@ torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
 }
 
 torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target) {
-  const auto prediction = forward_normalized(batch);
-  const auto error = (prediction - output_norm_->normalize(target)).pow(2).sum(1);
+  auto prediction = forward_normalized(batch);
+  auto goal = target;
+  if (batch.num_groups > 0) {
+    // Free groups: compare the momentum-conserving parts (the group-wide part of the training
+    // noise is not the model's to undo).
+    prediction =
+        output_norm_->normalize(project_momentum(batch, output_norm_->inverse(prediction)));
+    goal = project_momentum(batch, target);
+  }
+  const auto error = (prediction - output_norm_->normalize(goal)).pow(2).sum(1);
   return error.index({batch.mask}).mean();
 }
 
@@ -67,7 +75,7 @@ torch::Tensor LearnedSimulator::zero_prediction_loss(const Batch& batch,
 }
 
 torch::Tensor LearnedSimulator::predict(const Batch& batch) {
-  return output_norm_->inverse(forward_normalized(batch));
+  return project_momentum(batch, output_norm_->inverse(forward_normalized(batch)));
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,

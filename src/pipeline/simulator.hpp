@@ -21,13 +21,14 @@ class LearnedSimulator : public torch::nn::Module {
 
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
   // raw acceleration [N, dim]; the normalizers are settled beforehand (accumulate_statistics).
+  // On the batch's free groups both sides are projected first (project_momentum).
   torch::Tensor loss(const Batch& batch, const torch::Tensor& target);
   // Adds the batch's inputs and (predicted nodes') targets to the normalizer statistics.
   void accumulate_statistics(const Batch& batch, const torch::Tensor& target);
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the
   // reference a model must beat (no gradient).
   torch::Tensor zero_prediction_loss(const Batch& batch, const torch::Tensor& target) const;
-  // Raw acceleration [N, dim] predicted for the batch.
+  // Raw acceleration [N, dim] predicted for the batch, momentum-conserving on its free groups.
   torch::Tensor predict(const Batch& batch);
 
   GraphModel& model() { return *model_; }

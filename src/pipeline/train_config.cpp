@@ -70,6 +70,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.walls = f.opt<std::string>("walls", c.features.walls);
     require(c.features.walls == "auto" || c.features.walls == "off", f.context("walls"),
             "\"auto\" or \"off\"");
+    c.features.momentum = f.opt<std::string>("momentum", c.features.momentum);
+    require(c.features.momentum == "auto" || c.features.momentum == "off", f.context("momentum"),
+            "\"auto\" or \"off\"");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -119,7 +122,8 @@ Json to_json(const TrainConfig& c) {
                 {"noise_gamma", c.features.noise_gamma},
                 {"strain", c.features.strain},
                 {"num_node_types", c.features.num_node_types},
-                {"walls", c.features.walls}}},
+                {"walls", c.features.walls},
+                {"momentum", c.features.momentum}}},
               {"optimizer",
                {{"lr", c.optimizer.lr},
                 {"lr_final", c.optimizer.lr_final},

@@ -34,6 +34,10 @@ struct FeatureConfig {
   // Distance-to-wall inputs (GNS style): "auto" = on when the dataset's scene is a box
   // background with named wall boundaries; "off".
   std::string walls = "auto";
+  // Momentum of free bodies: "auto" = on when the scene allows it (LagrangianSpec,
+  // resolve_momentum) and the training data confirms it (free groups' true accelerations conserve
+  // momentum to 5 %: FLIP keeps angular momentum only to ~1 %); "off".
+  std::string momentum = "auto";
 };
 
 struct OptimizerConfig {

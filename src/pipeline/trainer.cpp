@@ -18,6 +18,7 @@
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
 #include "models/layers.hpp"
+#include "pipeline/fit.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
@@ -103,10 +104,36 @@ double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
   return rms > 1e-6 ? rms : 0.0;
 }
 
+// Momentum "auto" keeps conservation only when the data holds it to this relative residual.
+constexpr double kMomentumTolerance = 0.05;
+
+// Relative residual sqrt(sum m |a - P a|^2 / sum m |a|^2) of the true accelerations of free
+// groups (P = project_momentum) over up to 64 training frames; NaN when no frame has a free group.
+double momentum_residual(const Dataset& data, GraphStore& store, const LagrangianSpec& spec,
+                         uint64_t seed) {
+  LagrangianAdapter adapter(spec);
+  double off = 0, all = 0;
+  for (int i = 0; i < 64; ++i) {
+    const SampleRef ref = draw_sample(data, seed ^ 0x7f4a7c159e3779b9ull, -4, i);
+    LoadedSample s = load_sample(data, store, ref);
+    const Batch batch = adapter.make_batch({s.state});
+    if (batch.num_groups == 0) continue;
+    const auto a = adapter.target(batch, s.next).to(torch::kFloat64);
+    const auto m = (batch.mass.to(torch::kFloat64) * (batch.group >= 0)).unsqueeze(1);
+    Batch exact = batch;
+    exact.cur = batch.cur.to(torch::kFloat64);
+    off += (m * (a - project_momentum(exact, a)).square()).sum().item<double>();
+    all += (m * a.square()).sum().item<double>();
+  }
+  return all > 0 ? std::sqrt(off / all) : std::nan("");
+}
+
 // Resolves what the data decides: dimensions, node types, position scale, contact, levels.
 struct Resolved {
   LagrangianSpec spec;
   int levels = 1;
+  std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
+  double momentum_residual = -1;  // measured on the training data when on
 };
 
 Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
@@ -144,6 +171,22 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
   if (config.features.strain == "auto") s.strain_scale = rms_strain(train_data, probe, config.seed);
   // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
   if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
+  if (config.features.momentum == "auto") {
+    r.momentum_note = resolve_momentum(s, train_data.scene());
+    if (s.has_momentum()) {
+      const double residual = momentum_residual(train_data, probe, s, config.seed);
+      if (!(residual <= kMomentumTolerance)) {
+        std::ostringstream why;
+        why << (std::isnan(residual) ? std::string("the training data has no free body")
+                                     : "the training data's free bodies do not conserve it (" +
+                                           std::to_string(100.0 * residual) + " % residual)");
+        r.momentum_note = why.str();
+        s.momentum_radius = s.momentum_wall_range = 0.0;
+      } else {
+        r.momentum_residual = residual;
+      }
+    }
+  }
   if (config.model.type == "mgn") {
     r.levels = 1;
   } else {
@@ -191,13 +234,12 @@ TrainResult train(const TrainRequest& request) {
                        : request.out;
   const std::string run = result.run_dir;
   const Dataset train_data = Dataset::open_split(config.data, "train");
-  const Dataset valid_data = [&] {
-    try {
-      return Dataset::open_split(config.data, "valid");
-    } catch (const InputError&) {
-      return Dataset::open_split(config.data, "train");
-    }
-  }();
+  // A missing valid split validates on training data and says so; a broken one is an error.
+  const bool has_valid = Dataset::has_split(config.data, "valid");
+  if (!has_valid)
+    std::cerr << "bsms train: warning: " << config.data
+              << " has no valid split; valid_loss is measured on training frames\n";
+  const Dataset valid_data = Dataset::open_split(config.data, has_valid ? "valid" : "train");
   const Resolved resolved = resolve(config, train_data);
   std::error_code ec;
   fs::create_directories(fs::path(run) / "checkpoints", ec);
@@ -310,98 +352,86 @@ TrainResult train(const TrainRequest& request) {
               << (resolved.spec.has_contact()
                       ? "radius " + std::to_string(resolved.spec.contact_radius)
                       : std::string("off"))
+              << ", momentum "
+              << (resolved.spec.has_momentum()
+                      ? "conserved on free bodies (data residual " +
+                            std::to_string(100.0 * resolved.momentum_residual) + " %)"
+                      : "not conserved" + (resolved.momentum_note.empty()
+                                               ? std::string()
+                                               : " (" + resolved.momentum_note + ")"))
               << ", " << threads << " thread(s) -> " << run << "\n";
 
-  // With a time budget the bar counts seconds of the budget, not steps the run may never reach.
-  const bool by_time = config.time_budget_s > 0;
-  ProgressBar bar(by_time ? "train (s)" : "train",
-                  by_time ? static_cast<int64_t>(std::ceil(config.time_budget_s)) : config.steps);
-  Stopwatch clock;
-  std::vector<double> step_ms;
-  double last_loss = 0;
-  Validation last_valid;
-  // Progress of the run, 0..1: the larger of the step and time-budget shares, so that the
-  // learning-rate schedule ends where the run really ends.
-  auto progress = [&](int64_t at_step) {
-    double p = static_cast<double>(at_step) / static_cast<double>(config.steps);
-    if (by_time) p = std::max(p, (wall_before + clock.seconds()) / config.time_budget_s);
-    return std::min(p, 1.0);
-  };
-  const int64_t start_step = step;
-  simulator->train();
+  FitOptions fit_options;
+  fit_options.optimizer = config.optimizer;
+  fit_options.steps = config.steps;
+  fit_options.time_budget_s = config.time_budget_s;
+  fit_options.first_step = step;
+  fit_options.wall_before = wall_before;
+  fit_options.stop_step = request.until;
+  fit_options.quiet = request.quiet;
   const int64_t stop_step =
       request.until > 0 ? std::min(request.until, config.steps) : config.steps;
-  while (step < stop_step) {
-    if (config.time_budget_s > 0 && wall_before + clock.seconds() >= config.time_budget_s) break;
-    Stopwatch step_clock;
-    const double lr = learning_rate(config.optimizer, step, progress(step));
-    for (auto& group : optimizer.param_groups())
-      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
-    const TrainBatch b = training_batch(step);
-    optimizer.zero_grad();
-    auto loss = simulator->loss(b.batch, b.target);
-    loss.backward();
-    optimizer.step();
-    last_loss = loss.item<double>();
-    if (!std::isfinite(last_loss))
-      throw NumericalError("training step " + std::to_string(step) +
-                           ": loss is not finite (lower optimizer.lr or check the data)");
-    ++step;
-    step_ms.push_back(step_clock.milliseconds());
+  Validation last_valid;
+  FitHooks hooks;
+  hooks.loss = [&](int64_t index) {
+    const TrainBatch b = training_batch(index);
+    return simulator->loss(b.batch, b.target);
+  };
+  // Validation and an atomic checkpoint every valid_every steps and at the last step; one log
+  // row per step (validation columns empty between checks).
+  hooks.after_step = [&](const FitStep& s) {
     const bool checkpoint_now =
-        step % config.valid_every == 0 || step == config.steps || step == stop_step;
+        s.step % config.valid_every == 0 || s.step == config.steps || s.step == stop_step;
     std::string valid_text = ",";
     if (checkpoint_now) {
       last_valid = validate();
       std::ostringstream v;
       v << std::setprecision(6) << last_valid.loss << ',' << last_valid.baseline;
       valid_text = v.str();
-      save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
+      save_checkpoint(checkpoint, *simulator, optimizer, s.step, s.wall_s);
     }
-    log << step << ',' << std::setprecision(6) << wall_before + clock.seconds() << ',' << last_loss
-        << ',' << valid_text << ',' << lr << '\n';
+    log << s.step << ',' << std::setprecision(6) << s.wall_s << ',' << s.loss << ',' << valid_text
+        << ',' << s.lr << '\n';
     if (checkpoint_now) log.flush();
     std::ostringstream extra;
-    extra << "step " << step << ", loss " << std::setprecision(3) << last_loss;
     if (std::isfinite(last_valid.loss))
       extra << ", valid " << std::setprecision(3) << last_valid.loss << " (zero "
             << last_valid.baseline << ")";
-    extra << ", " << std::setprecision(3) << 1000.0 / step_ms.back() << " steps/s";
-    if (!request.quiet)
-      bar.update(by_time ? static_cast<int64_t>(wall_before + clock.seconds()) : step, extra.str());
-  }
+    return extra.str();
+  };
+  simulator->train();
+  const FitResult fitted = fit(optimizer, fit_options, hooks);
+  step = fitted.step;
+  const double last_loss = fitted.last_loss;
   // A time budget may stop between checkpoints: save where we are.
-  if (step > start_step && step % config.valid_every != 0 && step != stop_step) {
+  if (step > fit_options.first_step && step % config.valid_every != 0 && step != stop_step) {
     last_valid = validate();
-    save_checkpoint(checkpoint, *simulator, optimizer, step, wall_before + clock.seconds());
-    log << step << ',' << wall_before + clock.seconds() << ',' << last_loss << ','
-        << last_valid.loss << ',' << last_valid.baseline << ','
-        << learning_rate(config.optimizer, step, progress(step)) << '\n';
+    save_checkpoint(checkpoint, *simulator, optimizer, step, fitted.wall_s);
+    log << step << ',' << fitted.wall_s << ',' << last_loss << ',' << last_valid.loss << ','
+        << last_valid.baseline << ',' << fitted.last_lr << '\n';
   }
   log.close();
-  if (!request.quiet) bar.finish();
 
-  std::vector<double> sorted = step_ms;
-  std::sort(sorted.begin(), sorted.end());
   result.steps = step;
   result.final_loss = last_loss;
   result.final_valid_loss = last_valid.loss;
-  result.train_ms_per_step = sorted.empty() ? 0.0 : sorted[sorted.size() / 2];
+  result.train_ms_per_step = fitted.median_step_ms();
   Json stats = {
       {"steps", step},
       {"train_ms_per_step", result.train_ms_per_step},
       {"peak_rss_mb_train", peak_rss_mb()},
       {"threads", threads},
-      {"wall_s", wall_before + clock.seconds()},
+      {"wall_s", fitted.wall_s},
       {"final_loss", last_loss},
       {"final_valid_loss", std::isfinite(last_valid.loss) ? Json(last_valid.loss) : Json(nullptr)},
       {"final_valid_baseline",
        std::isfinite(last_valid.baseline) ? Json(last_valid.baseline) : Json(nullptr)},
-      {"num_parameters", simulator->num_parameters()}};
+      {"num_parameters", simulator->num_parameters()},
+      {"valid_split", has_valid ? "valid" : "train"}};
   if (request.resume && fs::exists(run_stats_path(run))) {
     // Keep the median of the first session when this one ran no step.
     const Json old = load_json_file(run_stats_path(run));
-    if (step_ms.empty()) stats["train_ms_per_step"] = old.value("train_ms_per_step", 0.0);
+    if (fitted.step_ms.empty()) stats["train_ms_per_step"] = old.value("train_ms_per_step", 0.0);
     stats["peak_rss_mb_train"] = std::max(old.value("peak_rss_mb_train", 0.0), peak_rss_mb());
   }
   write_json_atomic(run_stats_path(run), stats);

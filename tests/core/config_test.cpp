@@ -46,6 +46,25 @@ TEST(Config, OverridesParseJsonValuesAndCreateNestedKeys) {
   EXPECT_THROW(apply_override(j, "novalue", "--set"), InputError);
   EXPECT_THROW(apply_override(j, "solver.cfl.x=1", "--set"), InputError);
   EXPECT_THROW(apply_override(j, "a..b=1", "--set"), InputError);
+  // A list index too large for std::stoul is out of range, not a crash.
+  EXPECT_THROW(apply_override(j, "output.frames.99999999999999999999999=1", "--set"), InputError);
+}
+
+TEST(Config, IntegersMustFitTheirType) {
+  const Json j = Json::parse(
+      R"({"seed": -1, "big": 18446744073709551615, "steps": 3000000000, "ok": 7, "neg": -5})");
+  JsonObjectReader r(j, {"train.json", ""});
+  const std::string seed = message_of([&] { r.get<uint64_t>("seed"); });
+  EXPECT_NE(seed.find("seed"), std::string::npos) << seed;
+  EXPECT_NE(seed.find("[0, 18446744073709551615]"), std::string::npos) << seed;
+  EXPECT_NE(message_of([&] { r.get<int>("steps"); }).find("[-2147483648, 2147483647]"),
+            std::string::npos);
+  EXPECT_NE(message_of([&] { r.get<int64_t>("big"); }).find("got 18446744073709551615"),
+            std::string::npos);
+  EXPECT_EQ(r.get<uint64_t>("big"), 18446744073709551615ull);
+  EXPECT_EQ(r.get<int64_t>("steps"), 3000000000);
+  EXPECT_EQ(r.get<uint64_t>("ok"), 7u);
+  EXPECT_EQ(r.get<int>("neg"), -5);
 }
 
 TEST(Config, ReaderRejectsUnknownMissingAndMistypedKeys) {

@@ -1,16 +1,21 @@
 // Features and targets of the Lagrangian adapter (issue 10's recipe): the strain channel, the
-// contact pairs, the noise correction factor and the learning-rate schedule.
+// contact pairs, the noise correction factor, the learning-rate schedule and momentum
+// conservation on free bodies.
 #include "pipeline/lagrangian.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <set>
 #include <utility>
 
 #include "core/graph.hpp"
 #include "core/radius_search.hpp"
+#include "data/generate/family.hpp"
+#include "data/generate/generator.hpp"
 #include "models/layers.hpp"
 #include "pipeline/train_config.hpp"
 #include "plate_data.hpp"
@@ -135,6 +140,225 @@ TEST(LearningRate, WarmsUpThenDecaysWithProgress) {
   EXPECT_NEAR(learning_rate(o, 500, 3.0), 1e-5, 1e-15);  // past the end: the final rate
   o.warmup_steps = 0;
   EXPECT_NEAR(learning_rate(o, 0, 0.0), 1e-3, 1e-12);
+}
+
+// A batch of `groups` free groups of random nodes plus `bound` nodes outside any group.
+Batch random_groups(int dim, int groups, int per_group, int bound, uint64_t seed) {
+  torch::manual_seed(seed);
+  const int64_t n = groups * per_group + bound;
+  Batch b;
+  b.cur = torch::rand({n, dim}, torch::kFloat64);
+  b.mass = torch::rand({n}, torch::kFloat32) + 0.1;
+  std::vector<int64_t> group(n, -1);
+  for (int64_t i = 0; i < groups * per_group; ++i) group[i] = i / per_group;
+  b.group = torch::tensor(group, torch::kInt64);
+  b.num_groups = groups;
+  return b;
+}
+
+// Linear and angular momentum rate of each group, brute force in double precision.
+void expect_conserving(const Batch& b, const torch::Tensor& a, double tol) {
+  const int dim = static_cast<int>(a.size(1));
+  const auto x = b.cur.to(torch::kFloat64), m = b.mass.to(torch::kFloat64);
+  const auto acc = a.to(torch::kFloat64);
+  for (int64_t g = 0; g < b.num_groups; ++g) {
+    const auto in = b.group == g;
+    const auto mg = m.index({in}).unsqueeze(1), xg = x.index({in}), ag = acc.index({in});
+    const auto centre = (mg * xg).sum(0) / mg.sum();
+    const auto r = xg - centre;
+    const double scale = (mg * ag.abs()).sum().item<double>();
+    EXPECT_LT((mg * ag).sum(0).abs().max().item<double>(), tol * scale) << "group " << g;
+    torch::Tensor torque;
+    if (dim == 2) {
+      torque =
+          (mg.squeeze(1) * (r.select(1, 0) * ag.select(1, 1) - r.select(1, 1) * ag.select(1, 0)))
+              .sum();
+    } else {
+      torque = (mg * torch::cross(r, ag, 1)).sum(0);
+    }
+    EXPECT_LT(torque.abs().max().item<double>(), tol * scale) << "group " << g;
+  }
+}
+
+TEST(MomentumProjection, RemovesLinearAndAngularOnFreeGroupsOnly) {
+  for (int dim : {2, 3}) {
+    for (uint64_t seed = 0; seed < 20; ++seed) {
+      SCOPED_TRACE("dim " + std::to_string(dim) + " seed " + std::to_string(seed));
+      const Batch b = random_groups(dim, 3, 4 + static_cast<int>(seed % 5), 5, seed);
+      const auto a = torch::randn({b.cur.size(0), dim}, torch::kFloat64);
+      const auto p = project_momentum(b, a);
+      expect_conserving(b, p, 1e-10);
+      // Nodes outside the groups keep their acceleration.
+      const auto outside = b.group < 0;
+      EXPECT_TRUE(torch::equal(p.index({outside}), a.index({outside})));
+      // A projection: idempotent, and orthogonal in the mass-weighted inner product (it removes
+      // the least mass-weighted acceleration that breaks conservation).
+      EXPECT_LT((project_momentum(b, p) - p).abs().max().item<double>(), 1e-12);
+      const auto m = b.mass.to(torch::kFloat64).unsqueeze(1);
+      EXPECT_LT(std::abs((m * (a - p) * p).sum().item<double>()), 1e-10);
+      // A rigid motion's acceleration (uniform plus rotation) is removed entirely.
+      auto rigid = torch::randn({1, dim}, torch::kFloat64).expand({b.cur.size(0), dim}).clone();
+      if (dim == 2) {
+        rigid += 0.7 * torch::stack({-b.cur.select(1, 1), b.cur.select(1, 0)}, 1);
+      } else {
+        const auto w = torch::randn({1, 3}, torch::kFloat64).expand({b.cur.size(0), 3});
+        rigid += torch::cross(w, b.cur, 1);
+      }
+      const auto in = b.group >= 0;
+      EXPECT_LT(project_momentum(b, rigid).index({in}).abs().max().item<double>(), 1e-12);
+    }
+  }
+  // Without groups the projection is the identity.
+  Batch none;
+  const auto a = torch::randn({4, 2});
+  EXPECT_TRUE(torch::equal(project_momentum(none, a), a));
+}
+
+// Three bodies of 2 x 2 nodes (squares of side 0.05) in a walled unit box.
+TrajectoryMesh three_squares() {
+  TrajectoryMesh m;
+  m.dim = 2;
+  m.cell_size = 3;
+  for (int b = 0; b < 3; ++b) {
+    for (int k = 0; k < 4; ++k) {
+      m.mesh_pos.push_back(0.05f * static_cast<float>(k % 2));
+      m.mesh_pos.push_back(0.05f * static_cast<float>(k / 2));
+      m.node_type.push_back(0);
+      m.body_id.push_back(b);
+    }
+    const int o = 4 * b;
+    m.cells.insert(m.cells.end(), {o, o + 1, o + 3, o, o + 3, o + 2});
+  }
+  return m;
+}
+
+torch::Tensor placed(const TrajectoryMesh& m, const std::vector<std::pair<double, double>>& at) {
+  auto x = torch::tensor(m.mesh_pos).reshape({-1, 2}).to(torch::kFloat64);
+  for (int b = 0; b < 3; ++b) {
+    x.slice(0, 4 * b, 4 * b + 4).select(1, 0).add_(at[b].first);
+    x.slice(0, 4 * b, 4 * b + 4).select(1, 1).add_(at[b].second);
+  }
+  return x.to(torch::kFloat32);
+}
+
+TEST(MomentumGroups, BodiesInRangeJoinWallsAndKinematicNodesRelease) {
+  LagrangianSpec spec;
+  resolve_walls(spec, R"({"scene": {
+      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+      "boundaries": [{"group": "left"}, {"group": "right"}, {"group": "bottom"}, {"group": "top"}]}})",
+                0.1);
+  ASSERT_EQ(resolve_momentum(spec, R"({"scene": {
+      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+      "boundaries": [{"group": "left"}, {"group": "right"}, {"group": "bottom"}, {"group": "top"}]}})"),
+            "");
+  EXPECT_DOUBLE_EQ(spec.momentum_radius, 0.12);
+  EXPECT_DOUBLE_EQ(spec.momentum_wall_range, 0.08);
+  TrajectoryMesh mesh = three_squares();
+  int64_t count = 0;
+  // Bodies 0 and 1 are 0.10 apart (< 0.12): one group; body 2 is far: its own group.
+  auto g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}), &count);
+  EXPECT_EQ(count, 2);
+  EXPECT_EQ(g[0], g[4]);
+  EXPECT_NE(g[0], g[8]);
+  for (int i = 0; i < 12; ++i) EXPECT_GE(g[i], 0);
+  // 0.13 apart: three groups.
+  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.7}}), &count);
+  EXPECT_EQ(count, 3);
+  // Body 2 within 0.08 of the top wall: released (the wall pushes it).
+  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.88}}), &count);
+  EXPECT_EQ(count, 2);
+  EXPECT_EQ(g[8], -1);
+  // A fixed node in body 1 releases body 1 and, once joined, body 0 with it.
+  mesh.node_type[5] = static_cast<int32_t>(NodeType::kFixed);
+  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}), &count);
+  EXPECT_EQ(count, 1);
+  EXPECT_EQ(g[0], -1);
+  EXPECT_EQ(g[4], -1);
+  EXPECT_EQ(g[8], 0);
+  // Lumped masses share each triangle's area: 0.05^2 per body.
+  const auto mass = lumped_masses(mesh);
+  double total = 0;
+  for (float v : mass) total += v;
+  EXPECT_NEAR(total, 3 * 0.0025, 1e-7);
+  EXPECT_NEAR(mass[0], 0.0025 / 3.0, 1e-7);  // corner in two triangles: 2 x area/3 / 2
+}
+
+TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
+  const std::string walls = R"("boundaries": [{"group": "left"}, {"group": "right"}])";
+  auto why = [&](const std::string& scene, bool with_walls = true) {
+    LagrangianSpec s;
+    if (with_walls) {
+      s.wall_lo = {0.0, std::nan("")};
+      s.wall_hi = {1.0, std::nan("")};
+      s.wall_radius = 0.1;
+    }
+    return resolve_momentum(s, scene);
+  };
+  const std::string box =
+      R"("background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04})";
+  EXPECT_EQ(why("{" + box + ", " + walls + "}"), "");
+  EXPECT_EQ(why("{" + box + ", " + walls + R"(, "gravity": [0.0, 0.0]})"), "");
+  EXPECT_NE(why("{" + box + ", " + walls + R"(, "gravity": [0.0, -9.81]})").find("gravity"),
+            std::string::npos);
+  EXPECT_NE(why("{" + box + ", " + walls + R"(, "gravity": [0.0, [-9.81, -4.0]]})").find("gravity"),
+            std::string::npos);
+  EXPECT_NE(
+      why("{" + box + R"(, "boundaries": [{"point": [0, 0], "normal": [-1, 0], "type": "fixed"}]})")
+          .find("boundary"),
+      std::string::npos);
+  EXPECT_NE(why("{" + box + ", " + walls + "}", false).find("wall"), std::string::npos);
+  EXPECT_NE(why(R"({"background": {"type": "mesh"}})").find("box"), std::string::npos);
+  // The shipped default scene and the cantilever.
+  const std::string root = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
+  auto file = [](const std::string& path) {
+    std::ifstream in(path);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(why(file(root + "disks2d.json")), "");
+  EXPECT_NE(why(file(root + "cantilever.json")), "");
+}
+
+// The physics the projection relies on: in UMLS-MPM (FLIP) trajectories of the default scene,
+// the true accelerations of free groups conserve linear momentum to float round-off, and angular
+// momentum to a few per cent (FLIP is not exactly angular-momentum conserving).
+TEST(MomentumProjection, MpmDisksConserveMomentumOnFreeGroups) {
+  const std::string family_file = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/disks2d.json";
+  const generate::FamilyConfig family = generate::load_family(family_file, {"frames=12"});
+  std::ifstream in(family_file);
+  const std::string scene_json((std::istreambuf_iterator<char>(in)), {});
+  LagrangianSpec spec;
+  resolve_walls(spec, scene_json, 0.1);
+  ASSERT_EQ(resolve_momentum(spec, scene_json), "");
+  double linear = 0, angular = 0, all = 0;
+  int free_frames = 0;
+  for (int64_t index = 0; index < 3; ++index) {
+    const Trajectory t =
+        generate::generate_trajectory(family, 11, index, 3, "/tmp/bsms_momentum_unused");
+    const int64_t n = t.mesh.num_nodes();
+    const auto x = torch::tensor(t.fields.at("world_pos")).reshape({t.num_frames, n, 2});
+    for (int64_t f = 1; f + 1 < t.num_frames; ++f) {
+      Batch b;
+      std::vector<int64_t> group = momentum_groups(spec, t.mesh, x[f], &b.num_groups);
+      if (b.num_groups == 0) continue;
+      ++free_frames;
+      b.group = torch::tensor(group, torch::kInt64);
+      b.mass = torch::tensor(lumped_masses(t.mesh));
+      b.cur = x[f].to(torch::kFloat64);
+      const auto a = (x[f + 1] - 2 * x[f] + x[f - 1]).to(torch::kFloat64);
+      const auto m = (b.mass.to(torch::kFloat64) * (b.group >= 0)).unsqueeze(1);
+      // Linear part alone: the mass-weighted mean of each group.
+      const auto g = b.group.clamp_min(0);
+      const auto mean = torch::zeros({b.num_groups, 2}, torch::kFloat64).index_add(0, g, m * a) /
+                        torch::zeros({b.num_groups, 1}, torch::kFloat64).index_add(0, g, m);
+      linear += (m * mean.index_select(0, g).square()).sum().item<double>();
+      angular += (m * (a - project_momentum(b, a)).square()).sum().item<double>();
+      all += (m * a.square()).sum().item<double>();
+    }
+  }
+  ASSERT_GT(free_frames, 5);
+  ASSERT_GT(all, 0);
+  EXPECT_LT(std::sqrt(linear / all), 1e-3);
+  EXPECT_LT(std::sqrt(angular / all), 0.02);
 }
 
 }  // namespace

@@ -1,0 +1,69 @@
+#include "pipeline/fit.hpp"
+
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "core/runtime.hpp"
+
+namespace bsms {
+
+double FitResult::median_step_ms() const {
+  if (step_ms.empty()) return 0.0;
+  std::vector<double> sorted = step_ms;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  return sorted[sorted.size() / 2];
+}
+
+double fit_progress(const FitOptions& o, int64_t step, double wall_s) {
+  double p = o.steps > 0 ? static_cast<double>(step) / static_cast<double>(o.steps) : 1.0;
+  if (o.time_budget_s > 0) p = std::max(p, wall_s / o.time_budget_s);
+  return std::min(p, 1.0);
+}
+
+FitResult fit(torch::optim::Adam& optimizer, const FitOptions& o, const FitHooks& hooks) {
+  const bool by_time = o.time_budget_s > 0;
+  // With a time budget the bar counts seconds of the budget, not steps the run may never reach.
+  ProgressBar bar(by_time ? o.label + " (s)" : o.label,
+                  by_time ? static_cast<int64_t>(std::ceil(o.time_budget_s)) : o.steps);
+  Stopwatch clock;
+  FitResult r;
+  r.step = o.first_step;
+  const int64_t stop = o.stop_step > 0 ? std::min(o.stop_step, o.steps) : o.steps;
+  auto wall = [&] { return o.wall_before + clock.seconds(); };
+  while (r.step < stop) {
+    if (by_time && wall() >= o.time_budget_s) break;
+    Stopwatch step_clock;
+    const double lr = learning_rate(o.optimizer, r.step, fit_progress(o, r.step, wall()));
+    for (auto& group : optimizer.param_groups())
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    optimizer.zero_grad();
+    auto loss = hooks.loss(r.step);
+    loss.backward();
+    optimizer.step();
+    r.last_loss = loss.item<double>();
+    r.last_lr = lr;
+    if (!std::isfinite(r.last_loss))
+      throw NumericalError(o.label + ": step " + std::to_string(r.step) +
+                           ": loss is not finite (lower optimizer.lr or check the data)");
+    ++r.step;
+    r.step_ms.push_back(step_clock.milliseconds());
+    std::string extra;
+    if (hooks.after_step) extra = hooks.after_step(FitStep{r.step, wall(), r.last_loss, lr});
+    if (!o.quiet) {
+      std::ostringstream text;
+      text << "step " << r.step << ", loss " << std::setprecision(3) << r.last_loss << extra << ", "
+           << std::setprecision(3) << 1000.0 / r.step_ms.back() << " steps/s";
+      bar.update(by_time ? static_cast<int64_t>(wall()) : r.step, text.str());
+    }
+  }
+  r.wall_s = wall();
+  if (!o.quiet) bar.finish();
+  return r;
+}
+
+}  // namespace bsms
