@@ -165,6 +165,32 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   EXPECT_EQ(lines, 41);
 }
 
+// Without a valid split the run validates on training frames and says so (one warning line, and
+// valid_split in train_stats.json); a damaged valid split is an error, not a silent fallback.
+TEST(ValidSplit, MissingIsSaidDamagedIsAnError) {
+  const fs::path dir = fresh_dir("valid_split_" + std::to_string(::getpid()));
+  fs::create_directories(dir / "data");
+  write_split(dir / "data", "train", 2, 8);
+  TrainRequest r;
+  r.config_path = write_config(dir, dir / "data", "mgn", 4);
+  r.out = (dir / "run").string();
+  r.threads = 1;
+  r.quiet = true;
+  ::testing::internal::CaptureStderr();
+  train(r);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find("no valid split"), std::string::npos) << err;
+  EXPECT_EQ(load_json_file(run_stats_path(r.out))["valid_split"], "train");
+  std::ofstream(dir / "data" / "valid.h5") << "damaged";
+  r.out = (dir / "run2").string();
+  try {
+    train(r);
+    FAIL() << "a damaged valid split trained";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("valid.h5"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(PipelineTest, BadConfigsAndCheckpointsAreInputErrors) {
   const fs::path dir = fresh_dir("bad_" + std::to_string(::getpid()));
   const std::string config = (dir / "c.json").string();
