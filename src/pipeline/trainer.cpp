@@ -120,9 +120,7 @@ double momentum_residual(const Dataset& data, GraphStore& store, const Lagrangia
     if (batch.num_groups == 0) continue;
     const auto a = adapter.target(batch, s.next).to(torch::kFloat64);
     const auto m = (batch.mass.to(torch::kFloat64) * (batch.group >= 0)).unsqueeze(1);
-    Batch exact = batch;
-    exact.cur = batch.cur.to(torch::kFloat64);
-    off += (m * (a - project_momentum(exact, a)).square()).sum().item<double>();
+    off += (m * (a - project_momentum(batch, a)).square()).sum().item<double>();
     all += (m * a.square()).sum().item<double>();
   }
   return all > 0 ? std::sqrt(off / all) : std::nan("");
@@ -176,11 +174,10 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
     if (s.has_momentum()) {
       const double residual = momentum_residual(train_data, probe, s, config.seed);
       if (!(residual <= kMomentumTolerance)) {
-        std::ostringstream why;
-        why << (std::isnan(residual) ? std::string("the training data has no free body")
-                                     : "the training data's free bodies do not conserve it (" +
-                                           std::to_string(100.0 * residual) + " % residual)");
-        r.momentum_note = why.str();
+        r.momentum_note = std::isnan(residual)
+                              ? std::string("the training data has no free body")
+                              : "the training data's free bodies do not conserve it (" +
+                                    std::to_string(100.0 * residual) + " % residual)";
         s.momentum_radius = s.momentum_wall_range = 0.0;
       } else {
         r.momentum_residual = residual;

@@ -31,14 +31,26 @@ std::string input_error(const std::string& path, const std::vector<std::string>&
   return "";
 }
 
-TEST(Scene, EveryShippedSceneParses) {
+TEST(Scene, EveryShippedSceneParsesAndBuilds) {
   // Scenes of `bsms simulate`; dataset family files beside them are parsed by tests/generate.
   int count = 0;
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;
     if (load_json_file(entry.path().string()).contains("family"))
       continue;  // dataset families (generate)
-    EXPECT_NO_THROW(load_scene(entry.path().string())) << entry.path();
+    // Parsed and built (gmsh meshing, particles seeded at body nodes inside the background).
+    try {
+      const Scene scene = load_scene(entry.path().string());
+      int64_t particles = 0;
+      if (scene.dim == 2) {
+        particles = build_scene<2>(scene).particles.size();
+      } else {
+        particles = build_scene<3>(scene).particles.size();
+      }
+      EXPECT_GT(particles, 0) << entry.path();
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << entry.path() << ": " << e.what();
+    }
     ++count;
   }
   EXPECT_GE(count, 5);

@@ -85,6 +85,10 @@ TEST(VibratingBar, CellCrossingErrorOfLinearFemAndUmlsWithoutEta) {
     EXPECT_GT(e.stress, 3.0 * umls.stress);
   } catch (const NumericalError& e) {
     fem = std::string("stopped: ") + e.what();
+    // The stop names the step, the particle and the cause.
+    EXPECT_NE(fem.find("step"), std::string::npos) << fem;
+    EXPECT_NE(fem.find("particle"), std::string::npos) << fem;
+    EXPECT_NE(fem.find("inverted"), std::string::npos) << fem;
   }
   std::printf(
       "vibrating bar, centre-of-mass / probe-stress RMSE: umls %.3f %% / %.3f %%, umls_no_eta %.3f "
@@ -93,6 +97,16 @@ TEST(VibratingBar, CellCrossingErrorOfLinearFemAndUmlsWithoutEta) {
       100 * umls.com, 100 * umls.stress, 100 * no_eta.com, 100 * no_eta.stress, 100 * bspline.com,
       100 * bspline.stress, fem.c_str());
   EXPECT_LT(umls.stress, 0.05);
+  // Measured 2026-11-23: centre of mass / stress 0.536 / 0.697 % (UMLS), 0.510 / 0.592 % (no eta),
+  // 0.461 / 0.641 % (B-spline lattice). On this bar the eta term is within noise of UMLS (its
+  // benefit shows in the kernel-level jump test), and the smooth lattice kernel is as accurate:
+  // all three stay within 1.5x of each other, far below linear FEM.
+  for (const BarErrors* e : {&no_eta, &bspline}) {
+    EXPECT_LT(e->com, 1.5 * umls.com);
+    EXPECT_GT(e->com, umls.com / 1.5);
+    EXPECT_LT(e->stress, 1.5 * umls.stress);
+    EXPECT_GT(e->stress, umls.stress / 1.5);
+  }
 }
 
 // Total linear and angular momentum (APIC affine terms included) of the free rotating square.

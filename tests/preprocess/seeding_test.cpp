@@ -110,6 +110,7 @@ TEST(MinAve, SameResultWithOneAndTwoThreads) {
   std::mt19937_64 rng(9);
   const auto g = test::several_clusters(3, 2, rng);
   const auto big = test::grid_triangles(50, 40, 0.05, 0.3, rng);
+  const int before = omp_get_max_threads();  // restored: later tests keep their thread count
   for (const auto* graph : {&g.graph, &big.graph}) {
     const ClusterNodes clusters = clusters_of(*graph);
     omp_set_num_threads(1);
@@ -118,6 +119,7 @@ TEST(MinAve, SameResultWithOneAndTwoThreads) {
     const auto two = min_ave_seeds(*graph, clusters);
     EXPECT_EQ(one, two);
   }
+  omp_set_num_threads(before);
 }
 
 TEST(DistanceSums, MatchBruteForce) {
