@@ -278,9 +278,10 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
   const auto torque = sum(m * torch::cross(r, out, 1));                // [G, 3]
   const auto rr = (r.unsqueeze(2) * r.unsqueeze(1)).reshape({-1, 9});  // [N, 9]
   const auto eye = torch::eye(3, accel.options()).reshape({1, 9});
-  auto inertia = sum(m * (r.square().sum(1, true) * eye - rr)).reshape({groups, 3, 3});
-  inertia = inertia + 1e-30 * torch::eye(3, accel.options());
-  const auto alpha = torch::linalg::solve(inertia, torque.unsqueeze(2), true).squeeze(2);
+  const auto inertia = sum(m * (r.square().sum(1, true) * eye - rr)).reshape({groups, 3, 3});
+  // A degenerate group (one node, or nodes on a line) has a singular inertia tensor: the
+  // pseudo-inverse leaves the rotation about that axis alone (its torque is ~0 there anyway).
+  const auto alpha = torch::linalg::pinv(inertia).matmul(torque.unsqueeze(2)).squeeze(2);
   return out - torch::cross(alpha.index_select(0, g), r, 1);
 }
 

@@ -208,6 +208,17 @@ TEST(MomentumProjection, RemovesLinearAndAngularOnFreeGroupsOnly) {
       EXPECT_LT(project_momentum(b, rigid).index({in}).abs().max().item<double>(), 1e-12);
     }
   }
+  // Degenerate groups stay finite: one node (2-D and 3-D), and 3-D nodes on a line.
+  for (int dim : {2, 3}) {
+    Batch one = random_groups(dim, 1, 1, 0, 5);
+    const auto a = torch::randn({1, dim}, torch::kFloat64);
+    EXPECT_LT(project_momentum(one, a).abs().max().item<double>(), 1e-12);  // nothing is free
+  }
+  Batch line = random_groups(3, 1, 4, 0, 6);
+  line.cur = torch::linspace(0, 1, 4, torch::kFloat64).unsqueeze(1).expand({4, 3}).clone();
+  EXPECT_TRUE(torch::isfinite(project_momentum(line, torch::randn({4, 3}, torch::kFloat64)))
+                  .all()
+                  .item<bool>());
   // Without groups the projection is the identity.
   Batch none;
   const auto a = torch::randn({4, 2});
