@@ -9,6 +9,7 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "data/dataset/tfrecord.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
@@ -67,8 +68,11 @@ void DatasetWriter::add(const Trajectory& t) {
   const auto& m = t.mesh;
   const int64_t n = m.num_nodes();
   const int cell_size = m.cell_size > 0 ? m.cell_size : dim + 1;
-  if (m.dim != dim) throw InputError(what + ": mesh dimension differs from the dataset's");
-  if (n == 0 || static_cast<int64_t>(m.mesh_pos.size()) != n * dim ||
+  // The mesh may have fewer dimensions than the world (cloth: 2-D mesh_pos, 3-D world_pos).
+  if (m.dim < 1 || m.dim > dim)
+    throw InputError(what + ": mesh dimension " + std::to_string(m.dim) + " is not in 1.." +
+                     std::to_string(dim) + " (the dataset's dimension)");
+  if (n == 0 || static_cast<int64_t>(m.mesh_pos.size()) != n * m.dim ||
       (!m.body_id.empty() && static_cast<int64_t>(m.body_id.size()) != n) || m.cells.empty() ||
       m.cells.size() % cell_size != 0)
     throw InputError(what + ": inconsistent mesh arrays");
@@ -85,7 +89,7 @@ void DatasetWriter::add(const Trajectory& t) {
   if (t.solver_wall_s >= 0) f.set_attr(group, "solver_wall_s", t.solver_wall_s);
   f.write(group + "/cells", m.cells,
           {static_cast<hsize_t>(m.num_cells()), static_cast<hsize_t>(cell_size)});
-  f.write(group + "/mesh_pos", m.mesh_pos, {static_cast<hsize_t>(n), static_cast<hsize_t>(dim)});
+  f.write(group + "/mesh_pos", m.mesh_pos, {static_cast<hsize_t>(n), static_cast<hsize_t>(m.dim)});
   f.write(group + "/node_type", m.node_type, {static_cast<hsize_t>(n)});
   std::vector<int32_t> body = m.body_id.empty() ? std::vector<int32_t>(n, 0) : m.body_id;
   f.write(group + "/body_id", body, {static_cast<hsize_t>(n)});
@@ -111,30 +115,53 @@ void DatasetWriter::commit() {
 }
 
 // ---------------------------------------------------------------------------------------------
+const char* layout_name(DatasetLayout layout) {
+  switch (layout) {
+    case DatasetLayout::kBsms:
+      return "bsms dataset";
+    case DatasetLayout::kPublicFolder:
+      return "public per-trajectory HDF5 folder";
+    case DatasetLayout::kMeshGraphNets:
+      return "MeshGraphNets TFRecord";
+    case DatasetLayout::kPublicSingleFile:
+      return "public single-file HDF5";
+  }
+  return "?";
+}
+
 struct Dataset::Impl {
   std::string location;
-  bool public_layout = false;
+  DatasetLayout layout = DatasetLayout::kBsms;
+  bool public_layout = false;  // layout != kBsms
   int dim = 0;
   double frame_dt = 0.0;
+  double collision_radius = 0.0;
+  std::string simulator;
   std::string scene = "{}";
-  // bsms layout: one file, one group per trajectory; public layout: one file per trajectory.
+  // bsms layout: one file, one group per trajectory; public folder: one file per trajectory;
+  // public single file: one group per trajectory; MeshGraphNets: one record per trajectory.
   std::unique_ptr<H5File> file;
-  std::vector<std::string> groups;        // bsms: "/trajectories/000000"
-  std::vector<std::string> public_files;  // public: paths
+  std::vector<std::string> groups;        // bsms: "/trajectories/000000"; single file: "/0"
+  std::vector<std::string> public_files;  // public folder: paths
+  std::unique_ptr<tfrecord::TfRecordReader> records;
   std::vector<FieldInfo> fields;
   mutable std::mutex mutex;
   mutable std::map<int64_t, TrajectoryMesh> meshes;
   mutable std::map<int64_t, std::unique_ptr<H5File>> open_files;
 
   const H5File& file_of(int64_t t) const {
-    if (!public_layout) return *file;
+    if (layout != DatasetLayout::kPublicFolder) return *file;
     auto it = open_files.find(t);
     if (it == open_files.end())
       it = open_files.emplace(t, std::make_unique<H5File>(public_files[t], H5File::Mode::kRead))
                .first;
     return *it->second;
   }
-  std::string prefix(int64_t t) const { return public_layout ? "/" : groups[t] + "/"; }
+  std::string prefix(int64_t t) const {
+    return layout == DatasetLayout::kPublicFolder ? "/" : groups[t] + "/";
+  }
+  void open_tfrecord(const std::string& path);
+  void open_public_single_file();
 };
 
 namespace {
@@ -168,14 +195,84 @@ std::vector<FieldInfo> dynamic_fields(const H5File& f, const std::string& prefix
 
 }  // namespace
 
+namespace {
+
+bool is_index_name(const std::string& s) {
+  return !s.empty() && s.size() < 19 &&
+         std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+std::string legacy_message(const std::string& folder, const std::string& split) {
+  return folder +
+         ": BSMS-GNN's older converted layout (outputs_{split}/ with normalization_info in "
+         "meta.json) is not read; run bsms on the DeepMind meta.json + " +
+         split + ".tfrecord folder the converter started from, or BSMS-GNN's converter to " +
+         split + "/{i}.h5";
+}
+
+}  // namespace
+
+void Dataset::Impl::open_tfrecord(const std::string& path) {
+  layout = DatasetLayout::kMeshGraphNets;
+  public_layout = true;
+  const std::string meta_path = (fs::path(path).parent_path() / "meta.json").string();
+  tfrecord::Meta meta = tfrecord::read_meta(meta_path);
+  for (const auto& f : meta.fields)
+    if (f.kind == tfrecord::FieldKind::kDynamicVarlen)
+      throw InputError(meta_path + ": field '" + f.name +
+                       "' is dynamic_varlen: remeshing datasets (flag_dynamic, sphere_dynamic) "
+                       "are not supported by fixed-topology models");
+  for (const char* name : {"mesh_pos", "cells", "node_type"}) {
+    const tfrecord::FieldSpec* f = meta.find(name);
+    if (!f) throw InputError(meta_path + ": no field '" + name + "' (every trajectory needs it)");
+    if (f->kind != tfrecord::FieldKind::kStatic)
+      throw InputError(meta_path + ": field '" + name + "' must be static");
+  }
+  dim = static_cast<int>(meta.find("mesh_pos")->width());
+  for (const auto& f : meta.fields) {
+    if (f.kind != tfrecord::FieldKind::kDynamic || kStaticFields.count(f.name)) continue;
+    fields.push_back({f.name, f.width()});
+    if (f.name == "world_pos") dim = static_cast<int>(f.width());
+  }
+  frame_dt = meta.dt;
+  collision_radius = meta.collision_radius;
+  simulator = meta.simulator;
+  records = std::make_unique<tfrecord::TfRecordReader>(path, std::move(meta));
+  if (records->num_records() == 0) throw InputError(path + ": holds no records (trajectories)");
+}
+
+void Dataset::Impl::open_public_single_file() {
+  layout = DatasetLayout::kPublicSingleFile;
+  public_layout = true;
+  std::vector<std::string> names;
+  for (const auto& name : file->list("/"))
+    if (file->exists("/" + name + "/mesh_pos")) names.push_back(name);
+  const bool numeric = std::all_of(names.begin(), names.end(), is_index_name);
+  std::sort(names.begin(), names.end(), [&](const std::string& x, const std::string& y) {
+    return numeric ? std::stoll(x) < std::stoll(y) : x < y;
+  });
+  for (const auto& name : names) groups.push_back("/" + name);
+  const std::string first = groups[0];
+  if (!file->exists(first + "/cells") || !file->exists(first + "/node_type"))
+    throw InputError(location + ": group " + first +
+                     " needs datasets mesh_pos, cells and node_type");
+  fields = dynamic_fields(*file, first + "/");
+  dim = static_cast<int>(file->shape(first + "/mesh_pos").back());
+  for (const auto& field : fields)
+    if (field.name == "world_pos") dim = static_cast<int>(field.width);
+}
+
 Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) {
   auto& d = *impl_;
   d.location = location;
   std::error_code ec;
   if (fs::is_directory(location, ec)) {
+    d.layout = DatasetLayout::kPublicFolder;
     d.public_layout = true;
     std::vector<std::pair<long long, std::string>> files;
+    bool tfrecords = false;
     for (const auto& entry : fs::directory_iterator(location)) {
+      if (entry.path().extension() == ".tfrecord") tfrecords = true;
       if (entry.path().extension() != ".h5") continue;
       const std::string stem = entry.path().stem().string();
       char* end = nullptr;
@@ -185,6 +282,14 @@ Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) 
       files.emplace_back(index, entry.path().string());
     }
     std::sort(files.begin(), files.end());
+    if (files.empty() && tfrecords && fs::exists(fs::path(location) / "meta.json", ec))
+      throw InputError(location + ": a MeshGraphNets folder; open one split, e.g. " +
+                       (fs::path(location) / "train.tfrecord").string());
+    fs::path normal = fs::path(location).lexically_normal();
+    if (normal.filename().empty()) normal = normal.parent_path();  // "DIR/outputs_train/"
+    const std::string base = normal.filename().string();
+    if (files.empty() && base.rfind("outputs_", 0) == 0)
+      throw InputError(legacy_message(location, base.substr(8)));
     if (files.empty()) throw InputError(location + ": folder holds no {i}.h5 trajectory files");
     for (auto& [index, path] : files) d.public_files.push_back(path);
     const H5File& first = d.file_of(0);
@@ -195,22 +300,34 @@ Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) 
     d.dim = static_cast<int>(pos.back());
     for (const auto& field : d.fields)
       if (field.name == "world_pos") d.dim = static_cast<int>(field.width);
+  } else if (fs::path(location).extension() == ".tfrecord") {
+    d.open_tfrecord(location);
   } else {
     d.file = std::make_unique<H5File>(location, H5File::Mode::kRead);
-    if (!d.file->has_attr("/", "format") || d.file->attr_string("/", "format") != kFormat)
-      throw InputError(location + ": not a bsms dataset (root attribute format must be \"" +
-                       kFormat + "\")");
-    const int64_t version = d.file->attr_int("/", "version");
-    if (version != kVersion)
-      throw InputError(location + ": dataset version " + std::to_string(version) +
-                       " is not supported (expected 1)");
-    d.dim = static_cast<int>(d.file->attr_int("/", "dim"));
-    d.frame_dt = d.file->attr_double("/", "frame_dt");
-    d.scene = d.file->attr_string("/", "scene");
-    for (const auto& name : d.file->list("/trajectories"))
-      d.groups.push_back("/trajectories/" + name);
-    if (d.groups.empty()) throw InputError(location + ": dataset holds no trajectories");
-    d.fields = dynamic_fields(*d.file, d.groups[0] + "/");
+    const bool has_format = d.file->has_attr("/", "format");
+    bool single_file = false;
+    if (!has_format)
+      for (const auto& name : d.file->list("/"))
+        if (d.file->exists("/" + name + "/mesh_pos")) single_file = true;
+    if (single_file) {
+      d.open_public_single_file();
+    } else {
+      if (!has_format || d.file->attr_string("/", "format") != kFormat)
+        throw InputError(location + ": not a bsms dataset (root attribute format must be \"" +
+                         kFormat + "\", or the root must hold one group per trajectory with " +
+                         "mesh_pos)");
+      const int64_t version = d.file->attr_int("/", "version");
+      if (version != kVersion)
+        throw InputError(location + ": dataset version " + std::to_string(version) +
+                         " is not supported (expected 1)");
+      d.dim = static_cast<int>(d.file->attr_int("/", "dim"));
+      d.frame_dt = d.file->attr_double("/", "frame_dt");
+      d.scene = d.file->attr_string("/", "scene");
+      for (const auto& name : d.file->list("/trajectories"))
+        d.groups.push_back("/trajectories/" + name);
+      if (d.groups.empty()) throw InputError(location + ": dataset holds no trajectories");
+      d.fields = dynamic_fields(*d.file, d.groups[0] + "/");
+    }
   }
   if (d.fields.empty()) throw InputError(location + ": no dynamic fields ([T, N, ...] datasets)");
 }
@@ -220,12 +337,20 @@ Dataset Dataset::open_split(const std::string& dir, const std::string& split) {
   if (fs::exists(file)) return Dataset(file.string());
   const fs::path folder = fs::path(dir) / split;
   if (fs::is_directory(folder)) return Dataset(folder.string());
-  throw InputError(dir + ": no split '" + split + "' (expected " + file.string() + " or " +
-                   folder.string() + "/)");
+  const fs::path record = fs::path(dir) / (split + ".tfrecord");
+  if (fs::exists(record) && fs::exists(fs::path(dir) / "meta.json"))
+    return Dataset(record.string());
+  const fs::path legacy = fs::path(dir) / ("outputs_" + split);
+  if (fs::is_directory(legacy)) throw InputError(legacy_message(legacy.string() + "/", split));
+  throw InputError(dir + ": no split '" + split + "' (expected " + file.string() + ", " +
+                   folder.string() + "/ or meta.json + " + record.string() + ")");
 }
 
 bool Dataset::has_split(const std::string& dir, const std::string& split) {
-  return fs::exists(fs::path(dir) / (split + ".h5")) || fs::is_directory(fs::path(dir) / split);
+  const fs::path d(dir);
+  return fs::exists(d / (split + ".h5")) || fs::is_directory(d / split) ||
+         (fs::exists(d / (split + ".tfrecord")) && fs::exists(d / "meta.json")) ||
+         fs::is_directory(d / ("outputs_" + split));
 }
 
 Dataset::~Dataset() = default;
@@ -235,8 +360,17 @@ Dataset& Dataset::operator=(Dataset&&) noexcept = default;
 const std::string& Dataset::location() const {
   return impl_->location;
 }
+DatasetLayout Dataset::layout() const {
+  return impl_->layout;
+}
 bool Dataset::is_public_layout() const {
   return impl_->public_layout;
+}
+double Dataset::collision_radius() const {
+  return impl_->collision_radius;
+}
+std::string Dataset::simulator() const {
+  return impl_->simulator;
 }
 int Dataset::dim() const {
   return impl_->dim;
@@ -248,8 +382,14 @@ const std::string& Dataset::scene() const {
   return impl_->scene;
 }
 int64_t Dataset::num_trajectories() const {
-  return static_cast<int64_t>(impl_->public_layout ? impl_->public_files.size()
-                                                   : impl_->groups.size());
+  switch (impl_->layout) {
+    case DatasetLayout::kPublicFolder:
+      return static_cast<int64_t>(impl_->public_files.size());
+    case DatasetLayout::kMeshGraphNets:
+      return impl_->records->num_records();
+    default:
+      return static_cast<int64_t>(impl_->groups.size());
+  }
 }
 std::vector<FieldInfo> Dataset::fields() const {
   return impl_->fields;
@@ -270,6 +410,7 @@ void check_index(const Dataset& d, int64_t t) {
 
 int64_t Dataset::num_frames(int64_t t) const {
   check_index(*this, t);
+  if (impl_->records) return impl_->records->meta().trajectory_length;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const H5File& f = impl_->file_of(t);
   return static_cast<int64_t>(f.shape(impl_->prefix(t) + impl_->fields[0].name)[0]);
@@ -280,6 +421,17 @@ const TrajectoryMesh& Dataset::mesh(int64_t t) const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   auto it = impl_->meshes.find(t);
   if (it != impl_->meshes.end()) return it->second;
+  if (impl_->records) {
+    tfrecord::MeshArrays a = impl_->records->read_mesh(t);
+    TrajectoryMesh m;
+    m.dim = a.dim;
+    m.cell_size = a.cell_size;
+    m.mesh_pos = std::move(a.mesh_pos);
+    m.cells = std::move(a.cells);
+    m.node_type = std::move(a.node_type);
+    m.body_id.assign(m.node_type.size(), 0);
+    return impl_->meshes.emplace(t, std::move(m)).first->second;
+  }
   const H5File& f = impl_->file_of(t);
   const std::string p = impl_->prefix(t);
   TrajectoryMesh m;
@@ -336,6 +488,7 @@ std::vector<float> Dataset::read(int64_t t, const std::string& field, int64_t t0
                                  int64_t count) const {
   check_index(*this, t);
   if (!has_field(field)) throw InputError(impl_->location + ": no field '" + field + "'");
+  if (impl_->records) return impl_->records->read_float(t, field, t0, count);
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const H5File& f = impl_->file_of(t);
   const std::string name = impl_->prefix(t) + field;

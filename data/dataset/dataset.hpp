@@ -6,9 +6,13 @@
 //       world_pos float32 [T, N, dim], velocity float32 [T, N, dim], stress float32 [T, N]
 //       (optional)
 //
-// The reader also accepts the public MeshGraphNets / BSMS-GNN layout converted to HDF5: a folder
-// `{split}/` holding `{i}.h5`, each with mesh_pos, cells, node_type and dynamic fields among
-// world_pos, velocity, pressure, density (static fields may carry a leading time axis).
+// The reader also accepts the public datasets as users hold them (DESIGN.md "Public datasets"):
+// - DeepMind's MeshGraphNets folder `DIR/meta.json` + `DIR/{split}.tfrecord` (tfrecord.hpp);
+// - the BSMS-GNN conversion to HDF5, a folder `{split}/` holding `{i}.h5`, each with mesh_pos,
+//   cells, node_type and dynamic fields among world_pos, velocity, pressure, density (static
+//   fields may carry a leading time axis);
+// - the PyTorch ports' single `{split}.h5` with one group per trajectory ("0", "1", ...), each
+//   laid out like one `{i}.h5` above.
 #pragma once
 
 #include <cstdint>
@@ -69,13 +73,26 @@ class DatasetWriter {
   std::unique_ptr<Impl> impl_;
 };
 
+// How a split is stored (see the file comment).
+enum class DatasetLayout {
+  kBsms,              // DIR/{split}.h5 written by `bsms generate`
+  kPublicFolder,      // DIR/{split}/{i}.h5 (BSMS-GNN converter output)
+  kMeshGraphNets,     // DIR/meta.json + DIR/{split}.tfrecord (DeepMind, as distributed)
+  kPublicSingleFile,  // DIR/{split}.h5 with one group per trajectory (PyTorch ports)
+};
+const char* layout_name(DatasetLayout layout);  // e.g. "MeshGraphNets TFRecord"
+
 // Random access to (trajectory, frame) of one split.
 class Dataset {
  public:
-  // `location` is a bsms dataset file (e.g. DIR/train.h5), or a folder of public per-trajectory
-  // files (e.g. DIR/train/ holding 0.h5, 1.h5, ...). InputError names the file and the problem.
+  // `location` is a bsms dataset file (e.g. DIR/train.h5), a single-file public {split}.h5, a
+  // folder of public per-trajectory files (e.g. DIR/train/ holding 0.h5, 1.h5, ...) or a
+  // MeshGraphNets DIR/{split}.tfrecord (meta.json beside it; only record headers are read here).
+  // InputError names the file and the problem.
   explicit Dataset(const std::string& location);
-  // Opens split `split` of a dataset folder: DIR/{split}.h5 if present, else DIR/{split}/.
+  // Opens split `split` of a dataset folder: DIR/{split}.h5 if present, else DIR/{split}/, else
+  // DIR/{split}.tfrecord with DIR/meta.json. BSMS-GNN's older DIR/outputs_{split}/ is rejected
+  // with the conversion to run.
   static Dataset open_split(const std::string& dir, const std::string& split);
   // Whether `dir` holds the split (as open_split looks for it); says nothing of its contents.
   static bool has_split(const std::string& dir, const std::string& split);
@@ -84,9 +101,14 @@ class Dataset {
   Dataset& operator=(Dataset&&) noexcept;
 
   const std::string& location() const;
-  bool is_public_layout() const;
+  DatasetLayout layout() const;
+  bool is_public_layout() const;  // every layout but kBsms
+  // Spatial dimension of the dynamic positions: world_pos width when present, else mesh_pos
+  // width (cloth: mesh_pos 2-D, world_pos 3-D; TrajectoryMesh::dim stays the mesh_pos width).
   int dim() const;
-  double frame_dt() const;           // 0 when the data does not say
+  double frame_dt() const;           // s; 0 when the data does not say
+  double collision_radius() const;   // meta.json collision_radius; 0 when null or absent
+  std::string simulator() const;     // meta.json "simulator" ("" when absent)
   const std::string& scene() const;  // scene JSON ("{}" for public data)
   int64_t num_trajectories() const;
   int64_t num_frames(int64_t trajectory) const;

@@ -26,6 +26,8 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
                                                : "Polyline";
   const double dt = d.frame_dt() > 0 ? d.frame_dt() : 1.0;
   const bool moving = d.has_field("world_pos");
+  // Geometry: world positions when the nodes move (cloth: 3-D world, 2-D mesh), else the mesh.
+  const int geometry_dim = moving ? d.dim() : dim;
 
   std::ostringstream x;
   x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
@@ -54,9 +56,9 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
       << "<DataItem Dimensions=\"" << c << " " << mesh.cell_size
       << "\" NumberType=\"Int\" Format=\"HDF\">" << h5 << ":" << group << "/cells</DataItem>\n"
       << "</Topology>\n"
-      << "<Geometry GeometryType=\"" << (dim == 3 ? "XYZ" : "XY") << "\">\n";
+      << "<Geometry GeometryType=\"" << (geometry_dim == 3 ? "XYZ" : "XY") << "\">\n";
     if (moving) {
-      x << slab("world_pos", f, dim);
+      x << slab("world_pos", f, geometry_dim);
     } else {
       x << "<DataItem Dimensions=\"" << n << " " << dim
         << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << h5 << ":" << group

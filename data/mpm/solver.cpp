@@ -54,6 +54,10 @@ void Particles<Dim>::resize(int32_t n) {
 
 namespace {
 
+// Signed-mass share ρ = m_i / Σ_p |w_ip| m_p below which a node starts paying its momentum back
+// by |w| instead of w (see MpmSolver::step): λ = clamp(1 − ρ / κ, 0, 1).
+constexpr double kSharedMassFraction = 0.05;
+
 // First failure found by any thread: the lowest particle index wins (deterministic message).
 struct Failure {
   int32_t particle = INT_MAX;
@@ -125,6 +129,8 @@ MpmSolver<Dim>::MpmSolver(BackgroundMesh<Dim> background, std::vector<Material> 
   grid_mass_.assign(n, 0.0);
   grid_v_.assign(n, Vec<Dim>::Zero());
   grid_v_new_.assign(n, Vec<Dim>::Zero());
+  grid_share_.assign(n, 0.0);
+  affine_.assign(P, Mat<Dim>::Zero());
   ghost_v_.assign(ghosts_.size(), Vec<Dim>::Zero());
   ghost_v_new_.assign(ghosts_.size(), Vec<Dim>::Zero());
   for (int32_t p = 0; p < P; ++p) {
@@ -172,7 +178,15 @@ void MpmSolver<Dim>::advance_to(double t) {
   while (time_ < t) {
     double dt = stable_dt();
     const double remaining = t - time_;
-    if (dt >= remaining * (1.0 - 1e-9)) {
+    // Summed fixed steps drift from the frame times by up to ~1e-8 dt after thousands of steps:
+    // a step within 1e-6 of the remaining time takes all of it (a 1e-9 margin split every
+    // frame after t = 0.5 s into two half steps: 100,050 steps instead of 100,000), and a
+    // sliver left over is no step at all.
+    if (remaining <= 1e-9 * dt) {
+      time_ = t;
+      break;
+    }
+    if (dt >= remaining * (1.0 - 1e-6)) {
       dt = remaining;
     } else if (dt > 0.5 * remaining) {
       dt = 0.5 * remaining;  // two even steps instead of one full and one sliver
@@ -213,8 +227,9 @@ void MpmSolver<Dim>::step(double dt) {
   if (static_cast<int64_t>(entries_.size()) < entry_offsets_[P]) entries_.resize(entry_offsets_[P]);
 
   // 2. Kernel evaluation and P2G into per-thread buffers (no races), then a reduction over nodes.
-  constexpr int kStride = 1 + 2 * Dim;  // mass, momentum, force
+  constexpr int kStride = 2 + 2 * Dim;  // mass, Σ |w| m_p, momentum, force
   const int threads = omp_get_max_threads();
+  int64_t shared_nodes = 0;
   if (static_cast<int64_t>(scatter_.size()) < static_cast<int64_t>(threads) * N * kStride)
     scatter_.resize(static_cast<size_t>(threads) * N * kStride);
 #pragma omp parallel num_threads(threads)
@@ -254,6 +269,7 @@ void MpmSolver<Dim>::step(double dt) {
         D.computeInverseWithCheck(D_inv, invertible, 1e-14 * D.trace() * D.trace());
         if (invertible) affine = particles_.B[p] * D_inv;
       }
+      affine_[p] = affine;
       const Vec<Dim> gravity_force = mp * settings_.gravity;
       for (int i = 0; i < n; ++i) {
         double* node = buf + static_cast<size_t>(e[i].node) * kStride;
@@ -262,14 +278,16 @@ void MpmSolver<Dim>::step(double dt) {
         if (apic) momentum.noalias() += affine * (bg_.points[e[i].node] - xp);
         const Vec<Dim> force = e[i].w * gravity_force - stress_volume * e[i].grad;
         node[0] += wm;
+        node[1] += std::abs(wm);
         for (int a = 0; a < Dim; ++a) {
-          node[1 + a] += wm * momentum[a];
-          node[1 + Dim + a] += force[a];
+          node[2 + a] += wm * momentum[a];
+          node[2 + Dim + a] += force[a];
         }
       }
     }
     // Reduction and grid update (symplectic Euler + constraints), parallel over nodes.
-#pragma omp for schedule(static)
+    int64_t shared_here = 0;
+#pragma omp for schedule(static) nowait
     for (int32_t i = 0; i < N; ++i) {
       double acc[kStride];
       for (int k = 0; k < kStride; ++k) acc[k] = scatter_[static_cast<size_t>(i) * kStride + k];
@@ -277,16 +295,30 @@ void MpmSolver<Dim>::step(double dt) {
         for (int k = 0; k < kStride; ++k)
           acc[k] += scatter_[(static_cast<size_t>(t) * N + i) * kStride + k];
       grid_mass_[i] = acc[0];
-      if (!(acc[0] > 0.0)) {  // empty, or cancelled by negative MLS weights
+      if (!(acc[1] > 0.0)) {  // no particle reaches the node
         grid_v_[i].setZero();
         grid_v_new_[i].setZero();
+        grid_share_[i] = 0.0;
         continue;
       }
+      // MLS weights can be negative at the far edge of a particle's support, so the signed mass
+      // m_i = Σ w m_p of a node can be tiny, zero or negative while its momentum and force are
+      // not. Dropping such a node loses them (measured: the rotating square's momenta jumped
+      // from 1e-16 to 1e-7 / 1e-6 at the first such node, step 13943), and dividing by a
+      // cancelled mass blows its velocity up. Instead the node pays its momentum q_i = p_i + dt
+      // f_i back with the weights w' = w + λ (|w| − w), i.e. v_i = q_i / Σ w' m_p: with λ = 0
+      // this is APIC itself, with λ = 1 particle p gets the share |w| m_p / Σ|w| m (APIC again
+      // when all weights share a sign). Any λ conserves linear and angular momentum, APIC terms
+      // included; λ grows continuously as ρ = m_i / Σ|w| m falls below κ, so no rounding
+      // difference flips a discrete choice.
+      const double lambda = std::clamp(1.0 - acc[0] / (kSharedMassFraction * acc[1]), 0.0, 1.0);
+      grid_share_[i] = lambda;
+      if (lambda > 0.0) ++shared_here;
       Vec<Dim> v, f;
-      const double m_eff = acc[0];
+      const double m_eff = acc[0] + lambda * (acc[1] - acc[0]);
       for (int a = 0; a < Dim; ++a) {
-        v[a] = acc[1 + a] / m_eff;
-        f[a] = acc[1 + Dim + a];
+        v[a] = acc[2 + a] / m_eff;
+        f[a] = acc[2 + Dim + a];
       }
       Vec<Dim> vn = v + dt / m_eff * f;
       for (int32_t c = constraint_offsets_[i]; c < constraint_offsets_[i + 1]; ++c) {
@@ -302,14 +334,19 @@ void MpmSolver<Dim>::step(double dt) {
       grid_v_[i] = v;
       grid_v_new_[i] = vn;
     }
+#pragma omp atomic
+    shared_nodes += shared_here;
+#pragma omp barrier
     // Ghost nodes mirror the (already constrained) velocities at their reflected points.
 #pragma omp for schedule(static)
     for (size_t g = 0; g < ghosts_.size(); ++g) {
       const NodeConstraint<Dim>& con = ghosts_[g];
       Vec<Dim> vm = Vec<Dim>::Zero(), vo = Vec<Dim>::Zero();
       for (int k = 0; k < con.mirror_count; ++k) {
-        vm += con.mirror_weights[k] * grid_v_new_[con.mirror_nodes[k]];
-        vo += con.mirror_weights[k] * grid_v_[con.mirror_nodes[k]];
+        // A shared node's value is a momentum share rather than a velocity: it counts 1 − λ.
+        const double w = con.mirror_weights[k] * (1.0 - grid_share_[con.mirror_nodes[k]]);
+        vm += w * grid_v_new_[con.mirror_nodes[k]];
+        vo += w * grid_v_[con.mirror_nodes[k]];
       }
       const double nn = con.normal.squaredNorm();
       auto reflect = [&](const Vec<Dim>& v) -> Vec<Dim> {
@@ -325,9 +362,11 @@ void MpmSolver<Dim>::step(double dt) {
     for (size_t g = 0; g < ghosts_.size(); ++g) {
       grid_v_[ghosts_[g].node] = ghost_v_[g];
       grid_v_new_[ghosts_[g].node] = ghost_v_new_[g];
+      grid_share_[ghosts_[g].node] = 0.0;  // a velocity again (walls do not conserve momentum)
     }
   }
   if (failure.failed()) fail(failure.particle, failure.cause);
+  shared_node_steps_ += shared_nodes;
 
   // 3. G2P, deformation update, checks and stresses.
   const double flip = settings_.flip_ratio;
@@ -339,13 +378,24 @@ void MpmSolver<Dim>::step(double dt) {
     Vec<Dim> v_pic = Vec<Dim>::Zero(), dv = Vec<Dim>::Zero();
     Mat<Dim> grad_v = Mat<Dim>::Zero(), B = Mat<Dim>::Zero();
     for (int i = 0; i < n; ++i) {
-      const Vec<Dim>& vi = grid_v_new_[e[i].node];
-      v_pic.noalias() += e[i].w * vi;
-      grad_v.noalias() += vi * e[i].grad.transpose();
-      if (apic) {
-        B.noalias() += e[i].w * vi * (bg_.points[e[i].node] - xp).transpose();
+      const int32_t node = e[i].node;
+      const Vec<Dim>& vi = grid_v_new_[node];
+      const Vec<Dim> r = bg_.points[node] - xp;
+      // A shared node (λ > 0, see the grid update) pays back with w + λ (|w| − w); in the
+      // velocity gradient its value counts 1 − λ, the particle's own affine field the rest.
+      const double lambda = grid_share_[node];
+      const double w = e[i].w + lambda * (std::abs(e[i].w) - e[i].w);
+      v_pic.noalias() += w * vi;
+      if (lambda > 0.0) {
+        const Vec<Dim> own = particles_.v[p] + affine_[p] * r;
+        grad_v.noalias() += ((1.0 - lambda) * vi + lambda * own) * e[i].grad.transpose();
       } else {
-        dv.noalias() += e[i].w * (vi - grid_v_[e[i].node]);
+        grad_v.noalias() += vi * e[i].grad.transpose();
+      }
+      if (apic) {
+        B.noalias() += w * vi * r.transpose();
+      } else {
+        dv.noalias() += w * (vi - grid_v_[node]);
       }
     }
     if (apic) {

@@ -98,6 +98,9 @@ class MpmSolver {
   double time() const { return time_; }
   int64_t steps() const { return steps_; }
   double max_wave_speed() const { return max_wave_speed_; }
+  // Node-steps so far in which negative MLS weights cancelled most of a node's mass, so that the
+  // node paid its momentum back by |w| (see step()); a count, for tests and reports.
+  int64_t shared_node_steps() const { return shared_node_steps_; }
 
  private:
   void update_stress(int32_t p);
@@ -114,6 +117,7 @@ class MpmSolver {
   double max_wave_speed_ = 0.0;
   double time_ = 0.0;
   int64_t steps_ = 0;
+  int64_t shared_node_steps_ = 0;
 
   // Per-particle state derived each step.
   std::vector<int32_t> cell_;                            // walk hints
@@ -127,6 +131,10 @@ class MpmSolver {
   std::vector<double> scatter_;
   std::vector<double> grid_mass_;
   std::vector<Vec<Dim>> grid_v_, grid_v_new_;
+  // λ in [0, 1] per node: > 0 where negative MLS weights cancel most of the node's mass; the
+  // node's momentum is then paid back with weights w + λ (|w| − w) (see step()).
+  std::vector<double> grid_share_;
+  std::vector<Mat<Dim>> affine_;  // [P] APIC affine velocity C = B D⁻¹ of the last P2G, 1/s
   std::vector<Vec<Dim>> ghost_v_,
       ghost_v_new_;  // staging, so mirrors never read a ghost's new value
 };

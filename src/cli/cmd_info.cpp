@@ -1,13 +1,18 @@
-// bsms info FILE|RUN: summarises a dataset, a multilevel graph file, simulation frames or a run.
+// bsms info FILE|RUN: summarises a dataset (bsms, public HDF5 layouts, a MeshGraphNets folder or
+// one of its .tfrecord splits), a multilevel graph file, simulation frames or a run.
+#include <cstdio>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
+#include <sstream>
 
 #include "cli/command.hpp"
 #include "core/config.hpp"
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
+#include "data/dataset/tfrecord.hpp"
 
 namespace {
 
@@ -25,16 +30,62 @@ void info_dataset(const std::string& path) {
     for (int32_t v : m.node_type) ++types[v];
   }
   const double k = static_cast<double>(d.num_trajectories());
-  std::cout << path << ": "
-            << (d.is_public_layout() ? "public MeshGraphNets layout" : "bsms dataset")
-            << "\n  dimension " << d.dim() << ", frame dt " << d.frame_dt() << " s\n  "
-            << d.num_trajectories() << " trajectories, mean " << std::fixed << std::setprecision(1)
-            << frames / k << " frames, " << nodes / k << " nodes, " << cells / k
-            << " cells\n  fields:";
+  std::cout << path << ": " << bsms::layout_name(d.layout()) << "\n  dimension " << d.dim()
+            << ", frame dt " << d.frame_dt() << " s\n  " << d.num_trajectories()
+            << " trajectories, mean " << std::fixed << std::setprecision(1) << frames / k
+            << " frames, " << nodes / k << " nodes, " << cells / k << " cells\n  fields:";
   for (const auto& f : d.fields()) std::cout << ' ' << f.name << '[' << f.width << ']';
   std::cout << "\n  node types:";
   for (const auto& [type, count] : types) std::cout << ' ' << type << ':' << count;
   std::cout << '\n';
+}
+
+// A MeshGraphNets folder (meta.json + {split}.tfrecord): the schema, record counts and the first
+// trajectory's mesh. Reads record headers and one record only (a real split is ~13 GB).
+void info_meshgraphnets(const std::string& dir, const std::string& only_split = "") {
+  std::vector<std::string> splits;
+  if (!only_split.empty()) splits.push_back(only_split);
+  for (const char* split : {"train", "valid", "test"})
+    if (only_split.empty() && fs::exists(fs::path(dir) / (std::string(split) + ".tfrecord")))
+      splits.push_back(split);
+  if (splits.empty())
+    throw bsms::InputError(dir + ": meta.json but no train, valid or test .tfrecord");
+  // Opening a split checks the schema (e.g. rejects remeshing data) before anything is printed.
+  const bsms::Dataset first = bsms::Dataset::open_split(dir, splits[0]);
+  const bsms::TrajectoryMesh& mesh = first.mesh(0);
+  const bsms::tfrecord::Meta meta =
+      bsms::tfrecord::read_meta((fs::path(dir) / "meta.json").string());
+  std::ostringstream out;
+  out << dir << ": " << bsms::layout_name(first.layout()) << " dataset\n  simulator "
+      << (meta.simulator.empty() ? "(not stated)" : meta.simulator) << ", dt " << meta.dt
+      << " s, collision radius ";
+  if (meta.collision_radius > 0)
+    out << meta.collision_radius;
+  else
+    out << "none";
+  out << ", trajectory length " << meta.trajectory_length << " frames, dimension " << first.dim()
+      << "\n  splits:";
+  for (const auto& split : splits) {
+    const std::string path = (fs::path(dir) / (split + ".tfrecord")).string();
+    const bsms::tfrecord::TfRecordReader reader(path, meta);
+    const double mib = static_cast<double>(fs::file_size(path)) / (1024.0 * 1024.0);
+    char size[32];
+    std::snprintf(size, sizeof size, mib < 1 ? "%.0f KiB" : "%.1f MiB", mib < 1 ? mib * 1024 : mib);
+    out << (split == splits[0] ? " " : ", ") << split << ' ' << reader.num_records() << " records ("
+        << size << ')';
+  }
+  out << "\n  fields:\n";
+  for (const auto& f : meta.fields)
+    out << "    " << std::left << std::setw(12) << f.name << std::setw(15)
+        << bsms::tfrecord::kind_name(f.kind) << std::setw(14)
+        << bsms::tfrecord::shape_string(f.shape) << bsms::tfrecord::dtype_name(f.dtype) << '\n';
+  std::map<int32_t, int64_t> types;
+  for (int32_t v : mesh.node_type) ++types[v];
+  out << std::right << "  first trajectory (" << splits[0] << " record 0): " << mesh.num_nodes()
+      << " nodes, " << mesh.num_cells() << " cells of " << mesh.cell_size
+      << " nodes\n  node types:";
+  for (const auto& [type, count] : types) out << ' ' << type << ':' << count;
+  std::cout << out.str() << '\n';
 }
 
 void info_multilevel(const bsms::H5File& f) {
@@ -73,7 +124,13 @@ void info_run(const std::string& run) {
 void info(const std::string& path) {
   if (fs::is_directory(path)) {
     if (fs::exists(fs::path(path) / "config.json")) return info_run(path);
+    if (fs::exists(fs::path(path) / "meta.json")) return info_meshgraphnets(path);
     return info_dataset(path);  // public layout folder
+  }
+  if (fs::path(path).extension() == ".tfrecord") {
+    const fs::path parent = fs::path(path).parent_path();
+    return info_meshgraphnets(parent.empty() ? "." : parent.string(),
+                              fs::path(path).stem().string());
   }
   const bsms::H5File f(path, bsms::H5File::Mode::kRead);
   const std::string format = f.has_attr("/", "format") ? f.attr_string("/", "format") : "";
@@ -81,6 +138,9 @@ void info(const std::string& path) {
   if (format == "bsms-multilevel") return info_multilevel(f);
   if (format == "bsms-frames") return info_frames(f);
   if (f.exists("/mesh_pos")) return info_dataset(fs::path(path).parent_path().string());
+  if (format.empty())
+    for (const auto& name : f.list("/"))
+      if (f.exists("/" + name + "/mesh_pos")) return info_dataset(path);  // single-file public
   throw bsms::InputError(path + ": unknown file (format attribute '" + format +
                          "'; expected bsms-dataset, bsms-multilevel or bsms-frames)");
 }

@@ -125,6 +125,12 @@ void run_preprocess(const PreprocessOptions& options) {
   bsms::Stopwatch clock;
   const bsms::Mesh mesh = bsms::read_mesh(options.mesh);
   const double read_ms = clock.milliseconds();
+  // The graph needs only the connectivity, so degenerate cells are a warning here; the solver,
+  // which integrates over them, refuses them.
+  const bsms::BadCells bad = bsms::find_bad_cells(mesh);
+  if (bad.count() > 0)
+    std::fprintf(stderr, "preprocess: warning: %s: %s; the graph uses the connectivity only\n",
+                 options.mesh.c_str(), bad.describe().c_str());
   std::vector<bsms::LevelReport> report;
   clock.reset();
   const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(mesh, build, &report);

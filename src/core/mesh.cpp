@@ -3,10 +3,14 @@
 #include <gmsh.h>
 #include <omp.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <numeric>
 #include <unordered_map>
@@ -53,6 +57,65 @@ std::string element_name(int type) {
     return name;
   } catch (...) {
     return "gmsh element type " + std::to_string(type);
+  }
+}
+
+// A geometry file whose element size would make a huge mesh (e.g. a size in m typed for mm) is
+// refused before its surfaces or volumes are meshed: the curves are meshed first (cheap, linear
+// in their length over the size), their mean element length s gives the size, and the nodes of
+// the top dimension are estimated as the entities' bounding-box measure times the node density
+// of equilateral simplices of edge s (an upper estimate for non-box shapes).
+void refuse_huge_geometry(const std::string& path) {
+  const int dim = gmsh::model::getDimension();
+  if (dim < 2) return;
+  try {
+    gmsh::model::mesh::generate(1);
+  } catch (const std::exception& e) {
+    throw InputError(path + ": gmsh failed to mesh the curves of this geometry (" +
+                     std::string(e.what()) + ")");
+  }
+  std::vector<std::size_t> tags, nodes, node_tags;
+  std::vector<double> coords, parametric;
+  gmsh::model::mesh::getElementsByType(kGmshLine2, tags, nodes);
+  gmsh::model::mesh::getNodes(node_tags, coords, parametric, -1, -1, true, false);
+  if (tags.empty()) return;
+  std::unordered_map<std::size_t, size_t> at;
+  at.reserve(node_tags.size() * 2);
+  for (size_t i = 0; i < node_tags.size(); ++i) at.emplace(node_tags[i], i);
+  double length = 0.0;
+  for (size_t e = 0; e < tags.size(); ++e) {
+    const auto a = at.find(nodes[2 * e]), b = at.find(nodes[2 * e + 1]);
+    if (a == at.end() || b == at.end()) continue;
+    double sum = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      const double d = coords[3 * a->second + c] - coords[3 * b->second + c];
+      sum += d * d;
+    }
+    length += std::sqrt(sum);
+  }
+  const double size = length / static_cast<double>(tags.size());
+  if (!(size > 0.0)) return;
+  gmsh::vectorpair entities;
+  gmsh::model::getEntities(entities, dim);
+  double measure = 0.0;
+  for (const auto& [edim, etag] : entities) {
+    double box[6];
+    gmsh::model::getBoundingBox(edim, etag, box[0], box[1], box[2], box[3], box[4], box[5]);
+    std::array<double, 3> extent{box[3] - box[0], box[4] - box[1], box[5] - box[2]};
+    std::sort(extent.begin(), extent.end(), std::greater<double>());
+    double m = 1.0;
+    for (int a = 0; a < dim; ++a) m *= std::max(extent[a], size);
+    measure += m;
+  }
+  const double density = dim == 2 ? 1.1547 / (size * size) : 1.4142 / (size * size * size);
+  const double estimate = measure * density;
+  if (estimate > kMaxGeometryNodes) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  ": the geometry would mesh to about %.2g nodes (%dD measure %.3g at element "
+                  "size %.3g from its curve mesh), limit %.2g; refused before meshing",
+                  estimate, dim, measure, size, kMaxGeometryNodes);
+    throw InputError(path + text);
   }
 }
 
@@ -204,6 +267,7 @@ Mesh read_mesh(const std::string& path) {
   std::vector<int> types;
   gmsh::model::mesh::getElementTypes(types);
   if (types.empty() && gmsh::model::getDimension() > 0) {
+    refuse_huge_geometry(path);
     try {
       gmsh::model::mesh::generate(gmsh::model::getDimension());
     } catch (const std::exception& e) {
@@ -257,6 +321,108 @@ void validate_mesh(const Mesh& mesh, const std::string& context) {
                            std::to_string(v) + " (degenerate cell)");
     }
   }
+}
+
+namespace {
+
+// Signed measure of cell c in units of its own (longest edge)^cell_dim when cell_dim == dim,
+// else the unsigned Gram measure in the same units; `scale` receives the longest edge.
+double relative_measure(const Mesh& mesh, int64_t c, bool signed_measure) {
+  const int k = mesh.cell_dim;
+  Eigen::MatrixXd jac(mesh.dim, k);
+  const auto x0 = mesh.points.row(mesh.cells(c, 0));
+  for (int a = 0; a < k; ++a) jac.col(a) = (mesh.points.row(mesh.cells(c, a + 1)) - x0).transpose();
+  double longest = 0.0;
+  for (int a = 0; a <= k; ++a)
+    for (int b = a + 1; b <= k; ++b)
+      longest = std::max(
+          longest, (mesh.points.row(mesh.cells(c, a)) - mesh.points.row(mesh.cells(c, b))).norm());
+  if (!(longest > 0.0)) return 0.0;
+  const double unit = std::pow(longest, k);
+  if (signed_measure) return jac.determinant() / unit;
+  return std::sqrt(std::max(0.0, (jac.transpose() * jac).determinant())) / unit;
+}
+
+// A face (sorted vertex list, unused slots -1) of a cell, with the cell's opposite vertex.
+struct CellFace {
+  std::array<int64_t, 3> key;
+  int64_t cell;
+  int64_t opposite;
+  bool operator<(const CellFace& o) const { return key < o.key || (key == o.key && cell < o.cell); }
+};
+
+}  // namespace
+
+std::string BadCells::describe() const {
+  std::string s = std::to_string(count()) + " bad cell" + (count() == 1 ? "" : "s") + " (" +
+                  std::to_string(degenerate) + " zero-measure, " + std::to_string(inverted) +
+                  " inverted)";
+  if (first >= 0) s += ", first: cell " + std::to_string(first) + " (" + first_kind + ")";
+  return s;
+}
+
+BadCells find_bad_cells(const Mesh& mesh) {
+  constexpr double kTol = 1e-10;
+  BadCells bad;
+  const int64_t C = mesh.num_cells();
+  const int k = mesh.nodes_per_cell();
+  const bool full = mesh.cell_dim == mesh.dim;
+  std::vector<double> measure(C);
+  std::vector<char> kind(C, 0);  // 1 zero-measure, 2 inverted
+  int64_t positive = 0;
+  for (int64_t c = 0; c < C; ++c) {
+    measure[c] = relative_measure(mesh, c, full);
+    if (!(std::abs(measure[c]) > kTol)) {
+      kind[c] = 1;
+      ++bad.degenerate;
+    } else if (measure[c] > 0.0) {
+      ++positive;
+    }
+  }
+  if (full) {
+    const double majority = 2 * positive >= C - bad.degenerate ? 1.0 : -1.0;
+    std::vector<CellFace> faces;
+    faces.reserve(static_cast<size_t>(C) * k);
+    for (int64_t c = 0; c < C; ++c) {
+      if (kind[c]) continue;
+      for (int skip = 0; skip < k; ++skip) {
+        CellFace f{{-1, -1, -1}, c, mesh.cells(c, skip)};
+        int n = 0;
+        for (int a = 0; a < k; ++a)
+          if (a != skip) f.key[n++] = mesh.cells(c, a);
+        for (int a = 1; a < n; ++a)  // at most 3 entries (std::sort trips -Warray-bounds)
+          for (int b = a; b > 0 && f.key[b] < f.key[b - 1]; --b) std::swap(f.key[b], f.key[b - 1]);
+        faces.push_back(f);
+      }
+    }
+    std::sort(faces.begin(), faces.end());
+    const int d = mesh.dim;
+    auto side = [&](const CellFace& f, int64_t v) {
+      // Sign of the opposite vertex relative to the face hyperplane, in the face's own frame.
+      Eigen::MatrixXd m(d, d);
+      const auto x0 = mesh.points.row(f.key[0]);
+      for (int a = 1; a < d; ++a) m.col(a - 1) = (mesh.points.row(f.key[a]) - x0).transpose();
+      m.col(d - 1) = (mesh.points.row(v) - x0).transpose();
+      return m.determinant();
+    };
+    for (size_t i = 0; i + 1 < faces.size(); ++i) {
+      if (faces[i].key != faces[i + 1].key) continue;
+      const double s0 = side(faces[i], faces[i].opposite);
+      const double s1 = side(faces[i], faces[i + 1].opposite);
+      if (!(s0 * s1 > 0.0)) continue;  // opposite sides: a proper neighbour
+      for (int64_t c : {faces[i].cell, faces[i + 1].cell})
+        if (kind[c] == 0 && measure[c] * majority < 0.0) {
+          kind[c] = 2;
+          ++bad.inverted;
+        }
+    }
+  }
+  for (int64_t c = 0; c < C && bad.first < 0; ++c)
+    if (kind[c]) {
+      bad.first = c;
+      bad.first_kind = kind[c] == 1 ? "zero-measure" : "inverted";
+    }
+  return bad;
 }
 
 }  // namespace bsms

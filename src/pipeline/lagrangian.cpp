@@ -40,6 +40,11 @@ Json to_json(const LagrangianSpec& s) {
          {"strain_scale", s.strain_scale},
          {"public_layout", s.public_layout},
          {"multilevel", s.multilevel}};
+  // Written only when they differ from what runs trained before them used.
+  if (s.mesh_dim > 0 && s.mesh_dim != s.dim) j["mesh_dim"] = s.mesh_dim;
+  if (s.first_order) j["output"] = "velocity";
+  if (s.kinematic_input) j["kinematic_input"] = true;
+  if (!s.velocity_input) j["velocity_input"] = false;
   if (s.has_walls()) {
     Json lo = Json::array(), hi = Json::array();
     for (int a = 0; a < s.dim; ++a) {
@@ -105,6 +110,14 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   require(s.strain_scale >= 0, r.context("strain_scale"), ">= 0 (0 = no strain channel)");
   s.public_layout = r.get<bool>("public_layout");
   s.multilevel = r.get<bool>("multilevel");
+  s.mesh_dim = r.opt<int>("mesh_dim", 0);
+  require(s.mesh_dim >= 0 && s.mesh_dim <= 3, r.context("mesh_dim"), "1, 2 or 3");
+  const std::string output = r.opt<std::string>("output", "acceleration");
+  require(output == "acceleration" || output == "velocity", r.context("output"),
+          "\"acceleration\" or \"velocity\"");
+  s.first_order = output == "velocity";
+  s.kinematic_input = r.opt<bool>("kinematic_input", false);
+  s.velocity_input = r.opt<bool>("velocity_input", true);
   if (r.has("walls")) {
     JsonObjectReader w(r.raw("walls"), r.context("walls"));
     s.wall_radius = w.get<double>("radius");
@@ -320,11 +333,31 @@ EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, do
   const EdgeList near = radius_pairs(points, radius, &mesh_graph);
   const int dim = mesh.dim;
   const double far2 = (4.0 * radius) * (4.0 * radius);
+  // Connected components of the mesh: public data has no body ids, but its bodies (the plate
+  // and its actuator) are separate components.
+  std::vector<int64_t> component(mesh_graph.num_nodes, -1);
+  std::vector<int64_t> stack;
+  for (int64_t start = 0, next = 0; start < mesh_graph.num_nodes; ++start) {
+    if (component[start] >= 0) continue;
+    component[start] = next;
+    stack.push_back(start);
+    while (!stack.empty()) {
+      const int64_t v = stack.back();
+      stack.pop_back();
+      for (const int64_t* u = mesh_graph.begin(v); u != mesh_graph.end(v); ++u)
+        if (component[*u] < 0) {
+          component[*u] = next;
+          stack.push_back(*u);
+        }
+    }
+    ++next;
+  }
   EdgeList kept;
   kept.data.reserve(near.data.size());
   for (int64_t e = 0; e < near.size(); ++e) {
     const int64_t i = near.sender(e), j = near.receiver(e);
-    bool keep = mesh.body_id.empty() || mesh.body_id[i] != mesh.body_id[j];
+    bool keep =
+        mesh.body_id.empty() || mesh.body_id[i] != mesh.body_id[j] || component[i] != component[j];
     if (!keep) {
       double d2 = 0;
       for (int a = 0; a < dim; ++a) {
@@ -369,8 +402,16 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
       noises.push_back(added);
     }
     auto velocity = cur - s.prev;
+    if (!spec_.velocity_input)
+      velocity = torch::where(mask.unsqueeze(1), torch::zeros_like(velocity), velocity);
     auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
                        .to(torch::kFloat32);
+    if (spec_.kinematic_input) {
+      if (!s.next.defined())
+        throw std::logic_error("LagrangianAdapter: kinematic input needs FrameState::next");
+      const auto motion = torch::where(mask.unsqueeze(1), torch::zeros_like(s.cur), s.next - s.cur);
+      one_hot = torch::cat({one_hot, motion}, 1);
+    }
     if (spec_.has_walls()) {
       std::vector<torch::Tensor> parts = {velocity, one_hot};
       const auto ones = torch::ones({n}, torch::kFloat32);
@@ -385,8 +426,8 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
     } else {
       inputs.push_back(torch::cat({velocity, one_hot}, 1));
     }
-    mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, spec_.dim},
-                                        torch::kFloat32) *
+    mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()),
+                                        {n, spec_.mesh_dimension()}, torch::kFloat32) *
                        inv_scale);
     world_pos.push_back(cur * inv_scale);
     masks.push_back(mask);
@@ -447,12 +488,13 @@ torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor&
   auto target_pos = next;
   if (noise_gamma != 1.0 && batch.noise.defined())
     target_pos = next + (1.0 - noise_gamma) * batch.noise;
+  if (spec_.first_order) return target_pos - batch.cur;
   return target_pos - 2 * batch.cur + batch.prev;
 }
 
 torch::Tensor LagrangianAdapter::integrate(const Batch& batch, const torch::Tensor& accel,
                                            const torch::Tensor& prescribed) const {
-  auto predicted = 2 * batch.cur - batch.prev + accel;
+  auto predicted = spec_.first_order ? batch.cur + accel : 2 * batch.cur - batch.prev + accel;
   return torch::where(batch.mask.unsqueeze(1), predicted, prescribed);
 }
 

@@ -5,7 +5,9 @@
 // plus, when strain_scale > 0, the edge strain |x_ij| / |X_ij| - 1 over strain_scale) and, when the
 // scene has contact, contact edges (x offsets) carried to every level by A·Aᶜ·A. Contact edges
 // join nodes of different bodies (or of one body, far apart in the reference configuration).
-// Output: the acceleration x_{t+1} - 2 x_t + x_{t-1} (m per frame²).
+// Output: the acceleration x_{t+1} - 2 x_t + x_{t-1} (m per frame²), or with first_order the
+// velocity x_{t+1} - x_t. Public MeshGraphNets data (cloth: 2-D mesh X, 3-D world x; the plate:
+// an actuator whose next-step motion is an input) uses the same adapter.
 #pragma once
 
 #include <torch/types.h>
@@ -18,7 +20,19 @@
 namespace bsms {
 
 struct LagrangianSpec {
-  int dim = 2;
+  int dim = 2;       // world positions x
+  int mesh_dim = 0;  // mesh positions X (cloth: 2-D X, 3-D x); 0 = dim
+  // Output x_{t+1} - x_t integrated at first order (MeshGraphNets' DeformingPlate) instead of
+  // the acceleration x_{t+1} - 2 x_t + x_{t-1}.
+  bool first_order = false;
+  // Nodes that follow a prescribed path get their next-step motion x_{t+1} - x_t as dim more
+  // inputs (0 on predicted nodes): an actuator's motion is known to the model, as in
+  // MeshGraphNets. FrameState::next must then be set.
+  bool kinematic_input = false;
+  // The velocity x_t - x_{t-1} as an input on the nodes the model solves. Off: zero there (as
+  // MeshGraphNets' DeformingPlate: a quasi-static body's state is its shape, and training noise
+  // on a velocity far smaller than the noise only hides it); prescribed nodes keep theirs.
+  bool velocity_input = true;
   int num_node_types = 4;
   double position_scale = 1.0;  // m; positions are divided by it (mean mesh edge length)
   double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
@@ -41,7 +55,10 @@ struct LagrangianSpec {
   double momentum_wall_range = 0.0;
 
   bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
-  int input_size() const { return dim + num_node_types + (has_walls() ? 2 * dim : 0); }
+  int input_size() const {
+    return dim + num_node_types + (has_walls() ? 2 * dim : 0) + (kinematic_input ? dim : 0);
+  }
+  int mesh_dimension() const { return mesh_dim > 0 ? mesh_dim : dim; }
   int output_size() const { return dim; }
   bool has_contact() const { return contact_radius > 0; }
   bool has_momentum() const { return momentum_radius > 0; }
@@ -62,8 +79,9 @@ void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json,
 std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json);
 
 // Contact candidates: pairs closer than `radius` in `points` [N, dim] that the mesh does not join
-// and that belong to different bodies, or to one body but lie ≥ 4 radii apart in mesh_pos
-// (self-contact). Both directions, sorted like radius_pairs.
+// and that belong to different bodies or mesh components (public data has no body ids), or to one
+// body but lie ≥ 4 radii apart in mesh_pos (self-contact). Both directions, sorted like
+// radius_pairs.
 EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, double radius,
                        const CsrGraph& mesh_graph);
 
@@ -86,6 +104,9 @@ struct FrameState {
   const TrajectoryMesh* mesh = nullptr;
   torch::Tensor prev;  // [N, dim] float32 world positions at t-1 (m)
   torch::Tensor cur;   // [N, dim] float32 world positions at t (m)
+  // [N, dim] positions at t+1: read only on prescribed nodes, for spec.kinematic_input (the
+  // truth in training, the prescribed path in a rollout).
+  torch::Tensor next;
 };
 
 // A block-diagonal batch of states, ready for the model.
@@ -126,13 +147,14 @@ class LagrangianAdapter {
   // `noise[g]` (optional, [N_g, dim]) is added to graph g's current positions on predicted nodes.
   Batch make_batch(const std::vector<FrameState>& states,
                    const std::vector<torch::Tensor>& noise = {}) const;
-  // Target acceleration for the batch from next positions [N, dim] (concatenated like the batch).
-  // With training noise n on the current positions, the target next position is
-  // next + (1 - noise_gamma) n (MeshGraphNets' convention): gamma 1 asks the model to undo the
-  // noise in position, gamma 0 keeps the true velocity.
+  // Target acceleration (first order: velocity) for the batch from next positions [N, dim]
+  // (concatenated like the batch). With training noise n on the current positions, the target next
+  // position is next + (1 - noise_gamma) n (MeshGraphNets' convention): gamma 1 asks the model to
+  // undo the noise in position, gamma 0 keeps the true velocity.
   torch::Tensor target(const Batch& batch, const torch::Tensor& next,
                        double noise_gamma = 1.0) const;
-  // x_{t+1} = 2 x_t - x_{t-1} + a on predicted nodes, `prescribed` [N, dim] elsewhere.
+  // x_{t+1} = 2 x_t - x_{t-1} + a (first order: x_t + v) on predicted nodes, `prescribed`
+  // [N, dim] elsewhere.
   torch::Tensor integrate(const Batch& batch, const torch::Tensor& accel,
                           const torch::Tensor& prescribed) const;
 

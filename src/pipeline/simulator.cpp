@@ -10,16 +10,34 @@
 
 namespace bsms {
 
-LearnedSimulator::LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& config,
-                                   int levels) {
+ModelShape model_shape(const LagrangianSpec& spec) {
+  ModelShape s;
+  s.input_size = spec.input_size();
+  s.output_size = spec.output_size();
+  s.position_dims = {spec.mesh_dimension(), spec.dim};       // mesh X, world x
+  s.edge_set_fields = {{0, 1}};                              // mesh edges: both offsets
+  if (spec.has_contact()) s.edge_set_fields.push_back({1});  // contact edges: world offsets
+  if (spec.strain_scale > 0) s.edge_set_stretch = {EdgeStretch{0, 1, 1.0 / spec.strain_scale}};
+  return s;
+}
+
+ModelShape model_shape(const EulerianSpec& spec) {
+  ModelShape s;
+  s.input_size = spec.input_size();
+  s.output_size = spec.output_size();
+  s.position_dims = {spec.dim};
+  s.edge_set_fields = {{0}};
+  return s;
+}
+
+LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& config, int levels) {
   GraphModelOptions o;
-  o.input_size = spec.input_size();
-  o.output_size = spec.output_size();
+  o.input_size = shape.input_size;
+  o.output_size = shape.output_size;
   o.latent = config.latent;
-  o.position_dims = {spec.dim, spec.dim};                    // mesh X, world x
-  o.edge_set_fields = {{0, 1}};                              // mesh edges: both offsets
-  if (spec.has_contact()) o.edge_set_fields.push_back({1});  // contact edges: world offsets
-  if (spec.strain_scale > 0) o.edge_set_stretch = {EdgeStretch{0, 1, 1.0 / spec.strain_scale}};
+  o.position_dims = shape.position_dims;
+  o.edge_set_fields = shape.edge_set_fields;
+  o.edge_set_stretch = shape.edge_set_stretch;
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
   if (config.type == "bsms") {
@@ -28,10 +46,9 @@ LearnedSimulator::LearnedSimulator(const LagrangianSpec& spec, const ModelConfig
     model_ = std::make_shared<MeshGraphNets>(o);
   }
   register_module("model", model_);
-  input_norm_ =
-      register_module("input_normalizer", std::make_shared<Normalizer>(spec.input_size()));
+  input_norm_ = register_module("input_normalizer", std::make_shared<Normalizer>(shape.input_size));
   output_norm_ =
-      register_module("output_normalizer", std::make_shared<Normalizer>(spec.output_size()));
+      register_module("output_normalizer", std::make_shared<Normalizer>(shape.output_size));
 }
 
 int64_t LearnedSimulator::num_parameters() const {

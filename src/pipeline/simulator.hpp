@@ -9,15 +9,32 @@
 
 #include "models/layers.hpp"
 #include "models/networks.hpp"
+#include "pipeline/eulerian.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/train_config.hpp"
 
 namespace bsms {
 
+// What the graph model sees and returns, as an adapter defines it.
+struct ModelShape {
+  int input_size = 0;
+  int output_size = 0;
+  std::vector<int64_t> position_dims;                 // per position field
+  std::vector<std::vector<int64_t>> edge_set_fields;  // per edge set: the position fields used
+  std::vector<EdgeStretch> edge_set_stretch;          // per edge set (optional)
+};
+// Lagrangian: mesh X and world x; mesh edges with both offsets (and the strain channel), contact
+// edges with world offsets.
+ModelShape model_shape(const LagrangianSpec& spec);
+// Eulerian: mesh X only, on the mesh edges.
+ModelShape model_shape(const EulerianSpec& spec);
+
 class LearnedSimulator : public torch::nn::Module {
  public:
   // `levels`: the level count of every graph the BSMS model sees (1 for MeshGraphNets).
-  LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& model, int levels);
+  LearnedSimulator(const ModelShape& shape, const ModelConfig& model, int levels);
+  LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& model, int levels)
+      : LearnedSimulator(model_shape(spec), model, levels) {}
 
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
   // raw acceleration [N, dim]; the normalizers are settled beforehand (accumulate_statistics).
@@ -28,7 +45,8 @@ class LearnedSimulator : public torch::nn::Module {
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the
   // reference a model must beat (no gradient).
   torch::Tensor zero_prediction_loss(const Batch& batch, const torch::Tensor& target) const;
-  // Raw acceleration [N, dim] predicted for the batch, momentum-conserving on its free groups.
+  // Raw output (Lagrangian: acceleration or velocity [N, dim]) predicted for the batch,
+  // momentum-conserving on its free groups.
   torch::Tensor predict(const Batch& batch);
 
   GraphModel& model() { return *model_; }

@@ -73,6 +73,20 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.momentum = f.opt<std::string>("momentum", c.features.momentum);
     require(c.features.momentum == "auto" || c.features.momentum == "off", f.context("momentum"),
             "\"auto\" or \"off\"");
+    c.features.output = f.opt<std::string>("output", c.features.output);
+    require(c.features.output == "auto" || c.features.output == "acceleration" ||
+                c.features.output == "velocity",
+            f.context("output"), "\"auto\", \"acceleration\" or \"velocity\"");
+    c.features.kinematic_input = f.opt<std::string>("kinematic_input", c.features.kinematic_input);
+    require(c.features.kinematic_input == "auto" || c.features.kinematic_input == "on" ||
+                c.features.kinematic_input == "off",
+            f.context("kinematic_input"), "\"auto\", \"on\" or \"off\"");
+    c.features.velocity_input = f.opt<std::string>("velocity_input", c.features.velocity_input);
+    require(c.features.velocity_input == "auto" || c.features.velocity_input == "on" ||
+                c.features.velocity_input == "off",
+            f.context("velocity_input"), "\"auto\", \"on\" or \"off\"");
+    c.features.density_noise_std = f.opt<double>("density_noise_std", c.features.density_noise_std);
+    require(c.features.density_noise_std >= 0, f.context("density_noise_std"), ">= 0");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -103,32 +117,44 @@ double learning_rate(const OptimizerConfig& o, int64_t step, double progress) {
 Json to_json(const TrainConfig& c) {
   Json contact = c.features.contact_radius < 0 ? Json("auto") : Json(c.features.contact_radius);
   Json levels = c.model.levels == 0 ? Json("auto") : Json(c.model.levels);
-  return Json{{"data", c.data},
-              {"steps", c.steps},
-              {"time_budget_s", c.time_budget_s},
-              {"valid_every", c.valid_every},
-              {"valid_samples", c.valid_samples},
-              {"normalizer_steps", c.normalizer_steps},
-              {"seed", c.seed},
-              {"model",
-               {{"type", c.model.type},
-                {"latent", c.model.latent},
-                {"levels", levels},
-                {"seeding", c.model.seeding},
-                {"message_passing_steps", c.model.message_passing_steps}}},
-              {"features",
-               {{"contact_radius", contact},
-                {"noise_std", c.features.noise_std},
-                {"noise_gamma", c.features.noise_gamma},
-                {"strain", c.features.strain},
-                {"num_node_types", c.features.num_node_types},
-                {"walls", c.features.walls},
-                {"momentum", c.features.momentum}}},
-              {"optimizer",
-               {{"lr", c.optimizer.lr},
-                {"lr_final", c.optimizer.lr_final},
-                {"warmup_steps", c.optimizer.warmup_steps},
-                {"batch_size", c.optimizer.batch_size}}}};
+  Json j{{"data", c.data},
+         {"steps", c.steps},
+         {"time_budget_s", c.time_budget_s},
+         {"valid_every", c.valid_every},
+         {"valid_samples", c.valid_samples},
+         {"normalizer_steps", c.normalizer_steps},
+         {"seed", c.seed},
+         {"model",
+          {{"type", c.model.type},
+           {"latent", c.model.latent},
+           {"levels", levels},
+           {"seeding", c.model.seeding},
+           {"message_passing_steps", c.model.message_passing_steps}}},
+         {"features",
+          {{"contact_radius", contact},
+           {"noise_std", c.features.noise_std},
+           {"noise_gamma", c.features.noise_gamma},
+           {"strain", c.features.strain},
+           {"num_node_types", c.features.num_node_types},
+           {"walls", c.features.walls},
+           {"momentum", c.features.momentum}}},
+         {"optimizer",
+          {{"lr", c.optimizer.lr},
+           {"lr_final", c.optimizer.lr_final},
+           {"warmup_steps", c.optimizer.warmup_steps},
+           {"batch_size", c.optimizer.batch_size}}}};
+  // Keys added later are written only when set, so that runs trained before them still match
+  // their saved configuration on --resume.
+  const FeatureConfig defaults;
+  Json& f = j["features"];
+  if (c.features.output != defaults.output) f["output"] = c.features.output;
+  if (c.features.kinematic_input != defaults.kinematic_input)
+    f["kinematic_input"] = c.features.kinematic_input;
+  if (c.features.velocity_input != defaults.velocity_input)
+    f["velocity_input"] = c.features.velocity_input;
+  if (c.features.density_noise_std != defaults.density_noise_std)
+    f["density_noise_std"] = c.features.density_noise_std;
+  return j;
 }
 
 }  // namespace bsms

@@ -38,6 +38,19 @@ struct FeatureConfig {
   // resolve_momentum) and the training data confirms it (free groups' true accelerations conserve
   // momentum to 5 %: FLIP keeps angular momentum only to ~1 %); "off".
   std::string momentum = "auto";
+  // Lagrangian output: "acceleration" (x_{t+1} - 2 x_t + x_{t-1}, second-order integration),
+  // "velocity" (x_{t+1} - x_t, first-order, as MeshGraphNets' DeformingPlate), or "auto"
+  // (acceleration).
+  std::string output = "auto";
+  // Next-step motion of the nodes that follow a prescribed path (actuators, handles) as a node
+  // input, as MeshGraphNets does for DeformingPlate: "auto" = on for public MeshGraphNets data,
+  // off for bsms data; "on"; "off".
+  std::string kinematic_input = "auto";
+  // The velocity x_t - x_{t-1} as an input on solved nodes: "auto" = off for first-order output
+  // (quasi-static data, MeshGraphNets' DeformingPlate), on otherwise; "on"; "off".
+  std::string velocity_input = "auto";
+  // Eulerian data: Gaussian noise on the density input (the velocity input gets noise_std).
+  double density_noise_std = 0.0;
 };
 
 struct OptimizerConfig {

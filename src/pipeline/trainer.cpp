@@ -18,6 +18,7 @@
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
 #include "models/layers.hpp"
+#include "pipeline/eulerian.hpp"
 #include "pipeline/fit.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
@@ -76,6 +77,7 @@ LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef
   s.state.mesh = &mesh;
   s.state.prev = x[0];
   s.state.cur = x[1];
+  s.state.next = x[2];
   s.next = x[2];
   return s;
 }
@@ -92,8 +94,8 @@ double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
     const int64_t n = mesh.num_nodes();
     auto frame = data.read(ref.trajectory, position_field(data), ref.frame, 1);
     const auto x = torch::from_blob(frame.data(), {n, data.dim()}, torch::kFloat32);
-    const auto X = torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, data.dim()},
-                                    torch::kFloat32);
+    const auto X =
+        torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, mesh.dim}, torch::kFloat32);
     const auto& edges = graphs.hierarchy.edge_sets[0][0];
     if (edges.num_edges() == 0) continue;
     const auto strain = edge_features({X, x}, {}, edges, EdgeStretch{0, 1, 1.0});
@@ -126,28 +128,39 @@ double momentum_residual(const Dataset& data, GraphStore& store, const Lagrangia
   return all > 0 ? std::sqrt(off / all) : std::nan("");
 }
 
-// Resolves what the data decides: dimensions, node types, position scale, contact, levels.
+// Resolves what the data decides: the kind of model, dimensions, node types, position scale,
+// contact, levels.
 struct Resolved {
+  bool eulerian = false;  // fields on a fixed mesh (velocity, no world_pos)
   LagrangianSpec spec;
+  EulerianSpec eulerian_spec;
   int levels = 1;
   std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
   double momentum_residual = -1;  // measured on the training data when on
+
+  Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
+  ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
 };
 
 Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
   Resolved r;
-  LagrangianSpec& s = r.spec;
-  s.dim = train_data.dim();
-  s.public_layout = train_data.is_public_layout();
-  s.multilevel = config.model.type == "bsms";
+  if (!train_data.has_field("world_pos")) {
+    if (!train_data.has_field("velocity"))
+      throw InputError(train_data.location() +
+                       ": needs the field world_pos (a Lagrangian model) or velocity (an "
+                       "Eulerian model)");
+    r.eulerian = true;
+  }
+  const bool public_layout = train_data.is_public_layout();
+  const int mesh_dim = train_data.mesh(0).dim;
   int max_type = 0;
   bool several_bodies = false;
   for (int64_t t = 0; t < train_data.num_trajectories(); ++t) {
     const auto& m = train_data.mesh(t);
-    if (m.dim != s.dim)
+    if (m.dim != mesh_dim)
       throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
                        " has mesh dimension " + std::to_string(m.dim) + ", expected " +
-                       std::to_string(s.dim));
+                       std::to_string(mesh_dim));
     if (train_data.num_frames(t) < 3)
       throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
                        " has fewer than 3 frames");
@@ -155,14 +168,53 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
     std::set<int32_t> bodies(m.body_id.begin(), m.body_id.end());
     several_bodies = several_bodies || bodies.size() > 1;
   }
-  s.num_node_types = config.features.num_node_types > 0 ? config.features.num_node_types
-                                                        : std::max(max_type + 1, 4);
+  // Public data: MeshGraphNets' one-hot of width 9 (NORMAL 0 ... WALL_BOUNDARY 6).
+  const int num_node_types = config.features.num_node_types > 0 ? config.features.num_node_types
+                             : public_layout                    ? std::max(max_type + 1, 9)
+                                                                : std::max(max_type + 1, 4);
   // Position scale: mean mesh edge length of the first training mesh.
   GraphStore probe(Seeding::kCloseCenter, 1, {});
   const double edge = probe.get(train_data.mesh(0)).mean_edge_length;
+  if (config.model.type == "mgn") {
+    r.levels = 1;
+  } else {
+    r.levels = config.model.levels > 0
+                   ? config.model.levels
+                   : auto_levels(train_data.mesh(0), parse_seeding(config.model.seeding));
+  }
+  if (r.eulerian) {
+    EulerianSpec& e = r.eulerian_spec;
+    e.dim = mesh_dim;
+    const auto fields = train_data.fields();
+    for (const auto& f : fields)
+      if (f.name == "velocity" && f.width != mesh_dim)
+        throw InputError(train_data.location() + ": velocity has " + std::to_string(f.width) +
+                         " components, the mesh " + std::to_string(mesh_dim) + " dimensions");
+    e.num_node_types = num_node_types;
+    e.position_scale = edge > 0 ? edge : 1.0;
+    e.multilevel = config.model.type == "bsms";
+    e.density = train_data.has_field("density");
+    e.pressure = train_data.has_field("pressure");
+    return r;
+  }
+  LagrangianSpec& s = r.spec;
+  s.dim = train_data.dim();
+  s.mesh_dim = mesh_dim;
+  s.public_layout = public_layout;
+  s.multilevel = config.model.type == "bsms";
+  s.num_node_types = num_node_types;
   s.position_scale = edge > 0 ? edge : 1.0;
+  s.first_order = config.features.output == "velocity";
+  s.kinematic_input = config.features.kinematic_input == "on" ||
+                      (config.features.kinematic_input == "auto" && public_layout);
+  s.velocity_input = config.features.velocity_input == "on" ||
+                     (config.features.velocity_input == "auto" && !s.first_order);
   if (config.features.contact_radius < 0) {
-    if (several_bodies) resolve_contact_radius(s, train_data.scene(), edge);
+    // Public data states the radius of its world edges (DeformingPlate's collision_radius).
+    if (train_data.collision_radius() > 0)
+      s.contact_radius = train_data.collision_radius();
+    else if (several_bodies)
+      resolve_contact_radius(s, train_data.scene(), edge);
   } else {
     s.contact_radius = config.features.contact_radius;
   }
@@ -184,14 +236,60 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
       }
     }
   }
-  if (config.model.type == "mgn") {
-    r.levels = 1;
-  } else {
-    r.levels = config.model.levels > 0
-                   ? config.model.levels
-                   : auto_levels(train_data.mesh(0), parse_seeding(config.model.seeding));
-  }
   return r;
+}
+
+// One training or validation batch and its target.
+struct TrainBatch {
+  Batch batch;
+  torch::Tensor target;
+};
+
+// The adapter-specific part of training: samples of a dataset -> a batch and its target. Noise
+// is drawn from `generator` (none without it), slot by slot in the order of `refs`.
+TrainBatch make_train_batch(const Resolved& r, const TrainConfig& config, const Dataset& data,
+                            GraphStore& store, const std::vector<SampleRef>& refs,
+                            at::Generator* generator) {
+  TrainBatch b;
+  if (r.eulerian) {
+    const EulerianAdapter adapter(r.eulerian_spec);
+    std::vector<EulerianFrame> frames;
+    std::vector<torch::Tensor> nexts, pressures;
+    for (const SampleRef& ref : refs) {
+      const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
+      const auto state = read_eulerian_state(data, r.eulerian_spec, ref.trajectory, ref.frame, 2);
+      frames.push_back({&store.get(mesh), &mesh, state[0]});
+      nexts.push_back(state[1]);
+      if (r.eulerian_spec.pressure)
+        pressures.push_back(
+            read_eulerian_pressure(data, r.eulerian_spec, ref.trajectory, ref.frame + 1, 1)[0]);
+    }
+    std::vector<double> noise;
+    if (generator) {
+      noise.assign(r.eulerian_spec.dim, config.features.noise_std);
+      if (r.eulerian_spec.density) noise.push_back(config.features.density_noise_std);
+    }
+    b.batch = adapter.make_batch(frames, noise, generator);
+    b.target = adapter.target(b.batch, torch::cat(nexts, 0),
+                              pressures.empty() ? torch::Tensor() : torch::cat(pressures, 0),
+                              generator ? config.features.noise_gamma : 1.0);
+    return b;
+  }
+  const LagrangianAdapter adapter(r.spec);
+  std::vector<FrameState> states;
+  std::vector<torch::Tensor> nexts, noise;
+  for (const SampleRef& ref : refs) {
+    LoadedSample s = load_sample(data, store, ref);
+    states.push_back(s.state);
+    nexts.push_back(s.next);
+    if (generator)
+      noise.push_back(torch::randn(s.state.cur.sizes(), *generator, torch::kFloat32) *
+                      config.features.noise_std);
+  }
+  b.batch = adapter.make_batch(states, noise);
+  b.target =
+      adapter.target(b.batch, torch::cat(nexts, 0), generator ? config.features.noise_gamma : 1.0);
+  return b;
 }
 
 // Drops log rows after `step` (resume) and returns the file for appending.
@@ -251,7 +349,7 @@ TrainResult train(const TrainRequest& request) {
     throw InputError(checkpoint + ": nothing to resume (no checkpoint in this run folder)");
 
   const Json run_json = {{"config", to_json(config)},
-                         {"features_resolved", to_json(resolved.spec)},
+                         {"features_resolved", resolved.spec_json()},
                          {"levels", resolved.levels},
                          {"config_file", request.config_path}};
   if (request.resume) {
@@ -268,12 +366,12 @@ TrainResult train(const TrainRequest& request) {
   }
   write_json_atomic(run_config_path(run), run_json);
 
-  LagrangianAdapter adapter(resolved.spec);
   std::vector<std::string> cache_dirs = {(fs::path(config.data) / "multilevel").string(),
                                          (fs::path(run) / "multilevel").string()};
   for (const auto& d : cache_dirs) fs::create_directories(d, ec);
   GraphStore store(parse_seeding(config.model.seeding), resolved.levels, cache_dirs);
-  auto simulator = std::make_shared<LearnedSimulator>(resolved.spec, config.model, resolved.levels);
+  auto simulator =
+      std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
   torch::optim::Adam optimizer(simulator->parameters(),
                                torch::optim::AdamOptions(config.optimizer.lr));
 
@@ -300,38 +398,22 @@ TrainResult train(const TrainRequest& request) {
     simulator->eval();
     double total = 0, zero = 0;
     for (const auto& ref : valid_refs) {
-      LoadedSample s = load_sample(valid_data, store, ref);
-      Batch batch = adapter.make_batch({s.state});
-      const auto target = adapter.target(batch, s.next);
-      total += simulator->loss(batch, target).item<double>();
-      zero += simulator->zero_prediction_loss(batch, target).item<double>();
+      const TrainBatch b = make_train_batch(resolved, config, valid_data, store, {ref}, nullptr);
+      total += simulator->loss(b.batch, b.target).item<double>();
+      zero += simulator->zero_prediction_loss(b.batch, b.target).item<double>();
     }
     simulator->train();
     const double n = static_cast<double>(valid_refs.size());
     return Validation{total / n, zero / n};
   };
   // One training batch: deterministic in (seed, step), noise included.
-  struct TrainBatch {
-    Batch batch;
-    torch::Tensor target;
-  };
   auto training_batch = [&](int64_t index) {
-    std::vector<FrameState> states;
-    std::vector<torch::Tensor> nexts, noise;
+    std::vector<SampleRef> refs;
+    for (int slot = 0; slot < config.optimizer.batch_size; ++slot)
+      refs.push_back(draw_sample(train_data, config.seed, index, slot));
     auto generator =
         at::detail::createCPUGenerator(splitmix64(config.seed ^ (0x1234567ull + index)));
-    for (int slot = 0; slot < config.optimizer.batch_size; ++slot) {
-      LoadedSample s =
-          load_sample(train_data, store, draw_sample(train_data, config.seed, index, slot));
-      states.push_back(s.state);
-      nexts.push_back(s.next);
-      noise.push_back(torch::randn(s.state.cur.sizes(), generator, torch::kFloat32) *
-                      config.features.noise_std);
-    }
-    TrainBatch b;
-    b.batch = adapter.make_batch(states, noise);
-    b.target = adapter.target(b.batch, torch::cat(nexts, 0), config.features.noise_gamma);
-    return b;
+    return make_train_batch(resolved, config, train_data, store, refs, &generator);
   };
   // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
   // drawn apart from the training steps'). A resumed run has them in its checkpoint.
@@ -343,8 +425,9 @@ TrainResult train(const TrainRequest& request) {
   }
 
   if (!request.quiet)
-    std::cerr << "bsms train: " << config.model.type << ", " << resolved.levels << " level(s), "
-              << simulator->num_parameters() << " parameters, " << train_data.num_trajectories()
+    std::cerr << "bsms train: " << config.model.type << (resolved.eulerian ? " (Eulerian)" : "")
+              << ", " << resolved.levels << " level(s), " << simulator->num_parameters()
+              << " parameters, " << train_data.num_trajectories()
               << " training trajectories, contact "
               << (resolved.spec.has_contact()
                       ? "radius " + std::to_string(resolved.spec.contact_radius)

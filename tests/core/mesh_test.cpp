@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 
@@ -223,6 +224,106 @@ TEST(Mesh, MakeMeshValidates) {
   c << 0, 1, 2;
   p(1, 1) = std::nan("");
   EXPECT_THROW(make_mesh(2, p, c), InputError);
+}
+
+// Bad cells: brute-force cases with known answers, clean gmsh meshes in both orientations.
+TEST(Mesh, FindBadCellsNamesZeroAreaAndInvertedCells) {
+  RowMatrixXd p(5, 2);
+  p << 0, 0, 1, 0, 1, 1, 0, 1, 2, 2;
+  RowMatrixXi64 c(3, 3);
+  c << 0, 1, 2, 0, 2, 3, 0, 2, 4;  // cell 2: collinear (0,0), (1,1), (2,2)
+  BadCells bad = find_bad_cells(make_mesh(2, p, c));
+  EXPECT_EQ(bad.degenerate, 1);
+  EXPECT_EQ(bad.inverted, 0);
+  EXPECT_EQ(bad.first, 2);
+  EXPECT_EQ(bad.describe(),
+            "1 bad cell (1 zero-measure, 0 inverted), first: cell 2 (zero-measure)");
+
+  // Fold: vertex 3 moved across the diagonal 0-2, onto the side of cell 0.
+  RowMatrixXd q(5, 2);
+  q << 0, 0, 1, 0, 1, 1, 1.5, 0.5, 0, 1;
+  RowMatrixXi64 f(3, 3);
+  f << 0, 1, 2, 0, 2, 3, 0, 2, 4;  // cell 0 and 2 positive, cell 1 folded over cell 0
+  bad = find_bad_cells(make_mesh(2, q, f));
+  EXPECT_EQ(bad.degenerate, 0);
+  EXPECT_EQ(bad.inverted, 1);
+  EXPECT_EQ(bad.first, 1);
+  EXPECT_EQ(bad.first_kind, "inverted");
+
+  // The same meshes without the bad cell are clean, whatever their orientation.
+  RowMatrixXi64 good(2, 3);
+  good << 0, 1, 2, 0, 2, 4;
+  EXPECT_EQ(find_bad_cells(make_mesh(2, q, good)).count(), 0);
+  good << 0, 2, 1, 0, 4, 2;  // clockwise
+  EXPECT_EQ(find_bad_cells(make_mesh(2, q, good)).count(), 0);
+
+  // A flat tetrahedron and a triangle of zero area in 3D (Gram determinant).
+  RowMatrixXd t(4, 3);
+  t << 0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0;
+  RowMatrixXi64 tet(1, 4);
+  tet << 0, 1, 2, 3;
+  EXPECT_EQ(find_bad_cells(make_mesh(3, t, tet)).degenerate, 1);
+  RowMatrixXi64 tri(2, 3);
+  tri << 0, 1, 2, 1, 2, 3;
+  EXPECT_EQ(find_bad_cells(make_mesh(3, t, tri)).count(), 0);
+  t.row(3) << 2, 0, 0;  // (0,0,0), (1,0,0), (2,0,0): a zero-area triangle in 3D
+  tri << 0, 1, 3, 0, 1, 2;
+  EXPECT_EQ(find_bad_cells(make_mesh(3, t, tri)).degenerate, 1);
+}
+
+TEST(Mesh, GmshMeshesHaveNoBadCells) {
+  for (const std::string& geo :
+       {std::string("SetFactory(\"OpenCASCADE\");\nRectangle(1) = {0, 0, 0, 1, 1};\n"
+                    "Mesh.MeshSizeMax = 0.1;\n"),
+        std::string("SetFactory(\"OpenCASCADE\");\nBox(1) = {0, 0, 0, 1, 1, 1};\n"
+                    "Mesh.MeshSizeMax = 0.25;\n")}) {
+    const Mesh mesh = read_mesh(write_text("clean.geo", geo));
+    const BadCells bad = find_bad_cells(mesh);
+    EXPECT_EQ(bad.count(), 0) << bad.describe();
+    EXPECT_GT(mesh.num_cells(), 50);
+  }
+}
+
+// A collinear triangle reads without error (preprocess warns, the solver refuses).
+TEST(Mesh, CollinearTriangleIsReadAndFound) {
+  const std::string path = write_text("collinear.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+5
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+5 2 2 0
+$EndNodes
+$Elements
+3
+1 2 2 0 1 1 2 3
+2 2 2 0 1 1 3 4
+3 2 2 0 1 1 3 5
+$EndElements
+)");
+  const Mesh mesh = read_mesh(path);
+  const BadCells bad = find_bad_cells(mesh);
+  EXPECT_EQ(bad.degenerate, 1);
+  EXPECT_EQ(bad.first, 2);
+}
+
+// A geometry whose element size is a unit typo is refused before meshing, with the estimate.
+TEST(Mesh, HugeGeometryIsRefusedBeforeMeshing) {
+  const std::string path =
+      write_text("huge.geo",
+                 "SetFactory(\"OpenCASCADE\");\nRectangle(1) = {0, 0, 0, 1, 1};\n"
+                 "Mesh.MeshSizeMax = 1e-5;\nMesh.MeshSizeMin = 1e-5;\n");
+  const auto start = std::chrono::steady_clock::now();
+  const std::string error = error_of(path);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_NE(error.find(path), std::string::npos) << error;
+  EXPECT_NE(error.find("would mesh to about 1.2e+10 nodes"), std::string::npos) << error;
+  EXPECT_NE(error.find("limit 5e+07"), std::string::npos) << error;
+  EXPECT_LT(seconds, 10.0);
 }
 
 }  // namespace

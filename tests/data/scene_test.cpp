@@ -4,7 +4,9 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -54,6 +56,109 @@ TEST(Scene, EveryShippedSceneParsesAndBuilds) {
     ++count;
   }
   EXPECT_GE(count, 5);
+}
+
+// A unit typo is refused from the JSON alone, before meshing, with the estimate and the limit.
+TEST(Scene, HugeScenesAreRefusedBeforeMeshing) {
+  const std::string square = kScenes + "rotating_square.json";
+  struct Case {
+    std::vector<std::string> sets;
+    std::string key, figure;
+  };
+  const Case cases[] = {
+      {{"bodies.0.spacing=1e-7"}, "key 'bodies.0.spacing'", "about 4e+12 particles"},
+      {{"background.element_size=1e-6"},
+       "key 'background.element_size'",
+       "about 1.2e+12 background nodes"},
+      {{"solver.dt=1e-12"}, "key 'solver.dt'", "about 1e+12 time steps"},
+      {{"solver.end_time=9000"}, "key 'solver.dt'", "particle-and-node steps"},
+  };
+  for (const Case& c : cases) {
+    const auto start = std::chrono::steady_clock::now();
+    const std::string m = input_error(square, c.sets);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    EXPECT_NE(m.find(square), std::string::npos) << m;
+    EXPECT_NE(m.find(c.key), std::string::npos) << m;
+    EXPECT_NE(m.find(c.figure), std::string::npos) << m;
+    EXPECT_NE(m.find("limit"), std::string::npos) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+    EXPECT_LT(seconds, 1.0) << m;
+  }
+  // Memory: against a given limit (the default is the machine's physical memory).
+  const Scene scene = load_scene(square);
+  try {
+    check_scene_size(scene, 1e6);
+    ADD_FAILURE() << "a 1 MB limit passed";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("GB of memory estimated"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(check_scene_size(scene));
+}
+
+// The estimates are honest: within a factor 2 of what gmsh and the scene builder make, for
+// every shipped scene, and far below the limits.
+TEST(Scene, SizeEstimatesMatchTheBuiltShippedScenes) {
+  for (const auto& entry : fs::directory_iterator(kScenes)) {
+    if (entry.path().extension() != ".json") continue;
+    if (load_json_file(entry.path().string()).contains("family")) continue;
+    const Scene scene = load_scene(entry.path().string());
+    const SceneEstimate e = estimate_scene(scene);
+    double particles = 0.0, nodes = 0.0;
+    if (scene.dim == 2) {
+      const BuiltScene<2> b = build_scene<2>(scene);
+      particles = b.particles.size();
+      nodes = b.background.num_domain_nodes;
+    } else {
+      const BuiltScene<3> b = build_scene<3>(scene);
+      particles = b.particles.size();
+      nodes = b.background.num_domain_nodes;
+    }
+    std::printf(
+        "%s: particles %.0f (estimate %.0f), nodes %.0f (estimate %.0f), steps %.3g, "
+        "memory %.3g GB\n",
+        entry.path().filename().c_str(), particles, e.particles, nodes, e.nodes, e.steps,
+        e.bytes / 1e9);
+    EXPECT_LT(e.particles, 2.0 * particles) << entry.path();
+    EXPECT_GT(e.particles, 0.5 * particles) << entry.path();
+    EXPECT_LT(e.nodes, 2.0 * nodes) << entry.path();
+    EXPECT_GT(e.nodes, 0.5 * nodes) << entry.path();
+    EXPECT_LT((e.particles + e.nodes) * e.steps, 0.01 * kMaxNodeSteps) << entry.path();
+  }
+}
+
+// An input mesh with a zero-area cell is refused by the solver, naming the file and the cell.
+TEST(Scene, BackgroundMeshWithCollinearTriangleIsRefused) {
+  const fs::path dir = fs::temp_directory_path() / ("bsms_badmesh_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "bad.msh") << R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+5
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+5 2 2 0
+$EndNodes
+$Elements
+3
+1 2 2 0 1 1 2 3
+2 2 2 0 1 1 3 4
+3 2 2 0 1 1 3 5
+$EndElements
+)";
+  Json scene = load_json_file(kScenes + "rotating_square.json");
+  scene["background"] = {{"type", "mesh"}, {"path", "bad.msh"}};
+  const std::string file = (dir / "scene.json").string();
+  std::ofstream(file) << scene.dump();
+  const std::string m = input_error(file);
+  EXPECT_NE(m.find("key 'background.path'"), std::string::npos) << m;
+  EXPECT_NE(m.find("bad.msh"), std::string::npos) << m;
+  EXPECT_NE(m.find("1 zero-measure"), std::string::npos) << m;
+  EXPECT_NE(m.find("first: cell 2"), std::string::npos) << m;
+  fs::remove_all(dir);
 }
 
 TEST(Scene, BadScenesNameFileAndKey) {

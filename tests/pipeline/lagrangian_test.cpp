@@ -85,17 +85,29 @@ TEST(ContactPairs, JoinBodiesAndFarSelfContactOnly) {
   for (int64_t e = 0; e < c.size(); ++e) got.insert({c.sender(e), c.receiver(e)});
   const std::set<std::pair<int64_t, int64_t>> want = {{3, 4}, {4, 3}};  // 0.05 apart
   EXPECT_EQ(got, want);
-  // One body folded onto itself: node 7 moved next to node 0, far in the reference mesh.
+  // One body (one mesh component) folded onto itself: node 7 moved next to node 0, far in the
+  // reference mesh.
   for (auto& b : mesh.body_id) b = 0;
+  std::vector<int64_t> chain;
+  for (int64_t i = 0; i < 7; ++i) chain.insert(chain.end(), {i, i + 1});
+  const CsrGraph one = graph_from_pairs(8, chain);
   points(7, 0) = 0.02;
-  c = contact_pairs(points, mesh, 0.06, graph);
+  points(3, 0) = 0.35;  // node 3 next to 4 as before: mesh neighbours now
+  c = contact_pairs(points, mesh, 0.06, one);
   got.clear();
   for (int64_t e = 0; e < c.size(); ++e) got.insert({c.sender(e), c.receiver(e)});
   EXPECT_TRUE(got.count({0, 7}) && got.count({7, 0}));
-  EXPECT_FALSE(got.count({3, 4}));  // same body, 0.05 apart in the reference: not a contact
+  EXPECT_EQ(got.size(), 2u);
   // The brute force agrees: every kept pair is within the radius.
-  const EdgeList all = radius_pairs(points, 0.06, &graph);
+  const EdgeList all = radius_pairs(points, 0.06, &one);
   EXPECT_LE(c.size(), all.size());
+  // The same body id on two mesh components (public data carries no body ids: DeformingPlate's
+  // actuator and plate): the components count as bodies, so 3 and 4 (0.05 apart) are a contact.
+  points(3, 0) = 0.3;
+  c = contact_pairs(points, mesh, 0.06, graph);
+  got.clear();
+  for (int64_t e = 0; e < c.size(); ++e) got.insert({c.sender(e), c.receiver(e)});
+  EXPECT_TRUE(got.count({3, 4}) && got.count({4, 3}));
 }
 
 TEST(ContactRadius, FollowsTheSolversInteractionRange) {
@@ -114,7 +126,7 @@ TEST(NoiseGamma, TargetsKeepPositionOrVelocity) {
   LagrangianSpec spec;
   LagrangianAdapter adapter(spec);
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1]};
+  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}};
   const auto noise = 1e-3 * torch::randn({n, 2});
   const Batch b = adapter.make_batch({state}, {noise});
   const auto mask = b.mask.unsqueeze(1);
@@ -126,6 +138,51 @@ TEST(NoiseGamma, TargetsKeepPositionOrVelocity) {
   const auto next0 = adapter.integrate(b, adapter.target(b, frames[2], 0.0), frames[2]);
   EXPECT_TRUE(torch::allclose(next0 - b.cur, frames[2] - frames[1], 1e-6, 1e-7));
   EXPECT_GT(applied.abs().sum().item<double>(), 0.0);
+}
+
+// MeshGraphNets' DeformingPlate recipe: first-order output (the velocity x_{t+1} - x_t) and the
+// next-step motion of prescribed nodes as an input, zero on the nodes the model solves.
+TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion) {
+  Trajectory plate = testing::dragged_plate(3, 4, 3);
+  const int64_t n = plate.mesh.num_nodes();
+  const auto frames = torch::tensor(plate.fields["world_pos"]).reshape({4, n, 2});
+  LagrangianSpec spec;
+  spec.first_order = true;
+  spec.kinematic_input = true;
+  ASSERT_EQ(spec.input_size(), 2 + 4 + 2);
+  LagrangianAdapter adapter(spec);
+  GraphStore store(Seeding::kCloseCenter, 1, {});
+  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], frames[2]};
+  const auto noise = 1e-3 * torch::randn({n, 2});
+  const Batch b = adapter.make_batch({state}, {noise});
+  const auto target = adapter.target(b, frames[2], 1.0);
+  // The target is a velocity: x_{t+1} - (x_t + noise) on solved nodes.
+  EXPECT_TRUE(torch::allclose(target, frames[2] - b.cur, 1e-6, 1e-7));
+  EXPECT_TRUE(torch::allclose(adapter.integrate(b, target, frames[2]), frames[2], 1e-6, 1e-7));
+  // Inputs: [velocity, one-hot (4), motion (2)].
+  const auto motion = b.inputs.slice(1, 6, 8);
+  int64_t prescribed = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (b.mask[i].item<bool>()) {
+      EXPECT_EQ(motion[i].abs().sum().item<double>(), 0.0) << i;
+    } else {
+      EXPECT_TRUE(torch::allclose(motion[i], frames[2][i] - frames[1][i])) << i;
+      ++prescribed;
+    }
+  }
+  EXPECT_GT(prescribed, 0);
+  // Without the next frame the kinematic input cannot be formed: a logic error, not garbage.
+  FrameState blind{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}};
+  EXPECT_THROW(adapter.make_batch({blind}), std::logic_error);
+  // Round trip of the resolved features: old runs (no keys) read as second order.
+  const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");
+  EXPECT_TRUE(back.first_order);
+  EXPECT_TRUE(back.kinematic_input);
+  LagrangianSpec old;
+  const LagrangianSpec old_back = lagrangian_spec_from_json(to_json(old), "features.json");
+  EXPECT_FALSE(old_back.first_order);
+  EXPECT_FALSE(old_back.kinematic_input);
+  EXPECT_FALSE(to_json(old).contains("output"));
 }
 
 TEST(LearningRate, WarmsUpThenDecaysWithProgress) {

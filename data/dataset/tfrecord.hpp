@@ -1,0 +1,132 @@
+// DeepMind's MeshGraphNets datasets as distributed (DESIGN.md "Public datasets"): a folder with
+// `meta.json` and `{train,valid,test}.tfrecord`.
+//
+// TFRecord framing, per record: uint64 LE length, uint32 masked CRC32C of those 8 bytes, data,
+// uint32 masked CRC32C of the data. One record is one trajectory, a tf.train.Example whose feature
+// map holds, per field of meta `field_names`, a BytesList with one raw little-endian byte string,
+// decoded by the field's meta `dtype` and reshaped by its meta `shape` (-1 = node or cell count;
+// static fields are [1, N, d], dynamic ones [T, N, d], dynamic_varlen ones carry a companion
+// `length_<field>` with the rows of each frame).
+//
+// Opening a file scans record headers only; a record's data is checked (CRC) and its protobuf
+// wire walked on first access, which records where each field's bytes lie; later reads fetch only
+// those bytes. Every problem is an InputError naming the file, the record and the field.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bsms::tfrecord {
+
+// CRC32C (Castagnoli), extending `crc` (0 to start). Uses SSE4.2 when the build has it.
+uint32_t crc32c(const void* data, size_t size, uint32_t crc = 0);
+// The table version (always compiled; what crc32c uses without SSE4.2).
+uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
+// TFRecord's masked CRC: ((crc >> 15) | (crc << 17)) + 0xa282ead8.
+uint32_t mask_crc(uint32_t crc);
+
+enum class DType { kFloat32, kFloat64, kInt32, kInt64 };
+enum class FieldKind { kStatic, kDynamic, kDynamicVarlen };
+
+const char* dtype_name(DType dtype);    // "float32", ...
+const char* kind_name(FieldKind kind);  // "static", "dynamic", "dynamic_varlen"
+size_t dtype_size(DType dtype);         // bytes per value
+std::string shape_string(const std::vector<int64_t>& shape);  // "[24,-1,2]"
+
+struct FieldSpec {
+  std::string name;
+  FieldKind kind = FieldKind::kStatic;
+  DType dtype = DType::kFloat32;
+  std::vector<int64_t> shape;          // meta shape; at most one -1 (the node or cell count)
+  DType length_dtype = DType::kInt32;  // dynamic_varlen: dtype of `length_<name>`
+  int64_t width() const { return shape.empty() ? 1 : (shape.back() < 0 ? 1 : shape.back()); }
+};
+
+// meta.json of a MeshGraphNets dataset folder.
+struct Meta {
+  std::string path;               // the meta.json file (for messages)
+  std::vector<FieldSpec> fields;  // in field_names order (varlen companions not listed)
+  int64_t trajectory_length = 0;  // frames per trajectory (T)
+  double dt = 0.0;                // seconds between frames (0 when absent)
+  double collision_radius = 0.0;  // 0 when null or absent
+  std::string simulator;          // "" when absent
+  const FieldSpec* find(const std::string& name) const;  // nullptr when not a field
+};
+
+// Parses meta.json text; `path` names it in messages. Throws InputError.
+Meta parse_meta(const std::string& text, const std::string& path);
+Meta read_meta(const std::string& path);
+
+// Where one field of a record lies, after the record was checked and walked.
+struct FieldSlice {
+  uint64_t offset = 0;               // offset of the raw bytes in the file (or memory image)
+  uint64_t bytes = 0;                // length of the raw bytes
+  int64_t count = 0;                 // the -1 dimension (N or C); varlen: total rows
+  std::vector<int64_t> shape;        // the meta shape with -1 resolved (varlen: left -1)
+  std::vector<int64_t> row_lengths;  // dynamic_varlen: rows per frame ([T])
+  int64_t frames() const { return shape.empty() ? 1 : shape[0]; }
+};
+
+struct RecordLayout {
+  std::vector<FieldSlice> fields;  // same order as Meta::fields
+  int64_t num_nodes = -1;          // N shared by every fixed-size field but cells; -1: none
+};
+
+// A whole field of a record in memory (float dtypes in `floats`, integer ones in `ints`).
+struct DecodedField {
+  std::vector<int64_t> shape;  // resolved (varlen: -1 left in place)
+  std::vector<float> floats;
+  std::vector<int64_t> ints;
+  std::vector<int64_t> row_lengths;
+};
+
+// The static mesh of a record: mesh_pos [N, dim], cells [C, cell_size], node_type [N].
+struct MeshArrays {
+  int dim = 0;
+  int cell_size = 0;
+  std::vector<float> mesh_pos;
+  std::vector<int32_t> cells;
+  std::vector<int32_t> node_type;
+};
+
+// One .tfrecord file (or an in-memory image of one) read under a Meta. Thread-safe.
+class TfRecordReader {
+ public:
+  // Scans the record headers of `path` (checks the length CRCs; never reads record data).
+  TfRecordReader(const std::string& path, Meta meta);
+  // The same from bytes in memory; `name` labels messages (fuzzing, tests).
+  static TfRecordReader from_bytes(std::string bytes, const std::string& name, Meta meta);
+  ~TfRecordReader();
+  TfRecordReader(TfRecordReader&&) noexcept;
+  TfRecordReader& operator=(TfRecordReader&&) noexcept;
+
+  const std::string& path() const;
+  const Meta& meta() const;
+  int64_t num_records() const;
+  uint64_t record_bytes(int64_t record) const;  // data length of a record
+
+  // Checks the data CRC and walks the wire of a record on first call (then cached): every field
+  // present, sizes that fit dtype and shape, N consistent.
+  const RecordLayout& layout(int64_t record) const;
+  // Frames [t0, t0 + count) of a fixed-size field as float: [count, N, width] flattened (static
+  // fields have one frame). Reads only those bytes.
+  std::vector<float> read_float(int64_t record, const std::string& field, int64_t t0,
+                                int64_t count) const;
+  // A whole integer field as int32 (int64 values must fit).
+  std::vector<int32_t> read_int32(int64_t record, const std::string& field) const;
+  // mesh_pos, cells and node_type of a record, checked: finite positions, cells in range.
+  MeshArrays read_mesh(int64_t record) const;
+  // Reads, checks and converts a whole record in one pass (benchmarks, tests, fuzzing).
+  std::map<std::string, DecodedField> decode(int64_t record) const;
+
+ private:
+  TfRecordReader();
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bsms::tfrecord
