@@ -14,6 +14,9 @@ std::string level_group(int k) {
   return "/level_" + std::to_string(k);
 }
 
+// Level-0 nodes without edges (mesh nodes no cell uses) accepted beyond those the edges join.
+constexpr int64_t kMaxIsolatedNodes = int64_t{1} << 20;
+
 }  // namespace
 
 void write_multilevel_graph(const MultilevelGraph& graph, const std::string& path) {
@@ -110,7 +113,14 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
     }
     GraphLevel level;
     const std::vector<int64_t> edges = file.read<int64_t>(group + "/edges", nullptr, {0, 2});
-    level.graph = graph_from_edge_dataset(edges, num_nodes, path + ": " + group + "/edges");
+    // num_nodes sizes the CSR arrays: check it against data before allocating. Level k >= 1:
+    // pooled holds one ascending entry per node (so num_nodes <= the finer level's); level 0:
+    // every node with an edge has an out-edge, and nodes without one (no cell uses them) are few.
+    if (k == 0 && num_nodes > static_cast<int64_t>(edges.size() / 2) + kMaxIsolatedNodes) {
+      throw InputError(path + ": " + group + "@num_nodes = " + std::to_string(num_nodes) +
+                       " is more than its " + std::to_string(edges.size() / 2) + " edges join (+ " +
+                       std::to_string(kMaxIsolatedNodes) + " nodes without edges)");
+    }
     if (k >= 1) {
       const GraphLevel& fine = out.levels.back();
       level.pooled =
@@ -122,6 +132,10 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
                            std::to_string(v) + " is out of range or not ascending");
         }
       }
+    }
+    level.graph = graph_from_edge_dataset(edges, num_nodes, path + ": " + group + "/edges");
+    if (k >= 1) {
+      const GraphLevel& fine = out.levels.back();
       level.down_weight = file.read<float>(group + "/down_weight", nullptr,
                                            {static_cast<hsize_t>(fine.graph.num_edges())});
       for (size_t e = 0; e < level.down_weight.size(); ++e) {

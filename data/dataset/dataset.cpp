@@ -182,6 +182,25 @@ std::vector<T> read_static(const H5File& f, const std::string& name, size_t base
   return f.read<T>(name);
 }
 
+// Shape of a dynamic field of one trajectory: [T, N] or [T, N, width]. Only the first
+// trajectory's fields are listed when the dataset is opened; the others are checked here.
+Shape field_shape(const H5File& f, const std::string& name) {
+  Shape dims = f.shape(name);
+  if (dims.size() < 2)
+    throw InputError(f.path() + ": " + name + " has rank " + std::to_string(dims.size()) +
+                     ", expected a [T, N, ...] field");
+  return dims;
+}
+
+// Width (dim) of mesh_pos, [N, dim] or [T, N, dim].
+int mesh_pos_width(const H5File& f, const std::string& name) {
+  const Shape dims = f.shape(name);
+  if (dims.size() < 2)
+    throw InputError(f.path() + ": " + name + " has rank " + std::to_string(dims.size()) +
+                     ", expected [N, dim] or [T, N, dim]");
+  return static_cast<int>(dims.back());
+}
+
 std::vector<FieldInfo> dynamic_fields(const H5File& f, const std::string& prefix) {
   std::vector<FieldInfo> out;
   for (const auto& name : f.list(prefix == "/" ? "/" : prefix.substr(0, prefix.size() - 1))) {
@@ -257,7 +276,7 @@ void Dataset::Impl::open_public_single_file() {
     throw InputError(location + ": group " + first +
                      " needs datasets mesh_pos, cells and node_type");
   fields = dynamic_fields(*file, first + "/");
-  dim = static_cast<int>(file->shape(first + "/mesh_pos").back());
+  dim = mesh_pos_width(*file, first + "/mesh_pos");
   for (const auto& field : fields)
     if (field.name == "world_pos") dim = static_cast<int>(field.width);
 }
@@ -296,8 +315,7 @@ Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) 
     if (!first.exists("/mesh_pos") || !first.exists("/cells") || !first.exists("/node_type"))
       throw InputError(d.public_files[0] + ": expected datasets mesh_pos, cells and node_type");
     d.fields = dynamic_fields(first, "/");
-    const Shape pos = first.shape("/mesh_pos");
-    d.dim = static_cast<int>(pos.back());
+    d.dim = mesh_pos_width(first, "/mesh_pos");
     for (const auto& field : d.fields)
       if (field.name == "world_pos") d.dim = static_cast<int>(field.width);
   } else if (fs::path(location).extension() == ".tfrecord") {
@@ -413,7 +431,7 @@ int64_t Dataset::num_frames(int64_t t) const {
   if (impl_->records) return impl_->records->meta().trajectory_length;
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const H5File& f = impl_->file_of(t);
-  return static_cast<int64_t>(f.shape(impl_->prefix(t) + impl_->fields[0].name)[0]);
+  return static_cast<int64_t>(field_shape(f, impl_->prefix(t) + impl_->fields[0].name)[0]);
 }
 
 const TrajectoryMesh& Dataset::mesh(int64_t t) const {
@@ -453,6 +471,9 @@ const TrajectoryMesh& Dataset::mesh(int64_t t) const {
   if (f.exists(p + "body_id")) {
     Shape body_shape;
     m.body_id = read_static<int32_t>(f, p + "body_id", 1, &body_shape);
+    if (static_cast<int64_t>(m.body_id.size()) != n)
+      throw InputError(f.path() + ": body_id has " + std::to_string(m.body_id.size()) +
+                       " entries, mesh_pos " + std::to_string(n) + " nodes");
   } else {
     m.body_id.assign(n, 0);
   }
@@ -492,7 +513,7 @@ std::vector<float> Dataset::read(int64_t t, const std::string& field, int64_t t0
   std::lock_guard<std::mutex> lock(impl_->mutex);
   const H5File& f = impl_->file_of(t);
   const std::string name = impl_->prefix(t) + field;
-  const Shape dims = f.shape(name);
+  const Shape dims = field_shape(f, name);
   if (t0 < 0 || count < 0 || static_cast<hsize_t>(t0 + count) > dims[0])
     throw InputError(f.path() + ": frames " + std::to_string(t0) + ".." +
                      std::to_string(t0 + count - 1) + " of '" + field +

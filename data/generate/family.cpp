@@ -121,7 +121,7 @@ MaterialRange read_material(JsonObjectReader& r, const std::string& key) {
 }
 
 // The background box of the base scene, m [dim] each.
-void background_box(const Json& scene, const std::string& file, std::vector<double>& lo,
+void background_box(const Json& scene, const std::string& file, int dim, std::vector<double>& lo,
                     std::vector<double>& hi) {
   const JsonContext ctx{file, "scene.background"};
   if (!scene.contains("background") || !scene["background"].is_object() ||
@@ -133,6 +133,10 @@ void background_box(const Json& scene, const std::string& file, std::vector<doub
   } catch (const nlohmann::json::exception&) {
     throw InputError(ctx.where() + " needs numeric 'min' and 'max' corners");
   }
+  // The samplers index the corners by axis: a short corner must not be read past its end.
+  if (static_cast<int>(lo.size()) != dim || static_cast<int>(hi.size()) != dim)
+    throw InputError(ctx.where() + ": 'min' and 'max' must hold " + std::to_string(dim) +
+                     " numbers (scene.dim)");
 }
 
 Json uniform_velocity(const std::vector<double>& v) {
@@ -179,7 +183,7 @@ class DisksSampler : public SceneSampler {
             "in [0, 180]");
     material_ = read_material(r, "material");
     if (r.has("gravity")) gravity_ = read_vector_range(r, "gravity", base_.dim);
-    background_box(base_.base, base_.file, lo_, hi_);
+    background_box(base_.base, base_.file, base_.dim, lo_, hi_);
     require(base_.dim == 2, JsonContext{base_.file, "scene.dim"}, "2 (disks are 2D)");
     for (int a = 0; a < 2; ++a)
       if (lo_[a] + 2.0 * (radius_.max + gap_) > hi_[a])
@@ -269,7 +273,7 @@ class PressSampler : public SceneSampler {
     gap_ = r.opt<double>("actuator_gap", 0.01);
     require(gap_ >= 0.0, r.context("actuator_gap"), "non-negative");
     actuator_material_ = read_material(r, "actuator_material");
-    background_box(base_.base, base_.file, lo_, hi_);
+    background_box(base_.base, base_.file, base_.dim, lo_, hi_);
     require(lo_[1] < 0.0, JsonContext{base_.file, "scene.background.min"},
             "below y = 0 (the plate is clamped at y = 0)");
   }
@@ -331,7 +335,7 @@ class CantileverSampler : public SceneSampler {
     material_ = read_material(r, "material");
     load_ = read_range(r, "load", Sign::kNonNegative);
     angle_ = read_range(r, "load_angle_deg", Sign::kAny);
-    background_box(base_.base, base_.file, lo_, hi_);
+    background_box(base_.base, base_.file, base_.dim, lo_, hi_);
     require(lo_[0] < 0.0, JsonContext{base_.file, "scene.background.min"},
             "left of x = 0 (the beam is clamped at x = 0)");
   }
@@ -388,7 +392,7 @@ class UnionSampler : public SceneSampler {
     require(clearance_ >= 0.0, r.context("clearance"), "non-negative");
     material_ = read_material(r, "material");
     if (r.has("gravity")) gravity_ = read_vector_range(r, "gravity", base_.dim);
-    background_box(base_.base, base_.file, lo_, hi_);
+    background_box(base_.base, base_.file, base_.dim, lo_, hi_);
   }
 
   SampledScene sample(Rng& rng, const std::string& work_prefix) const override {

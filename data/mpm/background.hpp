@@ -54,6 +54,7 @@ struct BackgroundMesh {
   int32_t num_domain_nodes = 0;  // nodes of the input mesh; layer nodes follow
   int32_t num_domain_cells = 0;  // cells of the input mesh; layer cells follow
   double h = 0.0;  // kernel unit (support 1.5 h): max(mean edge, longest edge / 1.45) of the input
+                   // or the kernel_width given to make_background
   double min_height = 0.0;  // smallest simplex height (CFL of the linear FEM kernel)
   double mean_edge = 0.0;   // mean edge length of the input mesh
   std::map<std::string, NodeGroup<Dim>> groups;
@@ -91,9 +92,12 @@ struct BackgroundMesh {
 // Builds the background from a simplicial mesh (mesh.dim == mesh.cell_dim == Dim). With `add_layer`
 // one layer of elements of thickness h is extruded outward from the boundary, so that boundary
 // particles keep a full ring of samples; nodes of a group on that boundary pass the group (and
-// normal) to their extruded copies. Throws InputError prefixed with `context`.
+// normal) to their extruded copies. `kernel_width` > 0 sets h instead of deriving it from the
+// edges; it must be at least the longest edge / 1.5 (every vertex of a particle's cell inside the
+// support). Throws InputError prefixed with `context`.
 template <int Dim>
-BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std::string& context);
+BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std::string& context,
+                                    double kernel_width = 0.0);
 
 // A lattice covering [lo - ghost dx, hi + ghost dx] with spacing dx; groups "left"/"right" (x),
 // "bottom"/"top" (y), "back"/"front" (z in 3D) hold the nodes on or beyond each side of [lo, hi].

@@ -174,6 +174,9 @@ Scene parse_scene(const Json& json, const std::string& file) {
                        "' (allowed: box, ball, mesh)");
     }
     bg.extra_layer = b.opt<bool>("extra_layer", true);
+    bg.kernel_width = b.opt<double>("kernel_width", 0.0);
+    require(std::isfinite(bg.kernel_width) && bg.kernel_width >= 0.0, b.context("kernel_width"),
+            ">= 0 (m; 0: from the mesh)");
     b.finish();
   }
 
@@ -255,6 +258,9 @@ Scene parse_scene(const Json& json, const std::string& file) {
       throw InputError(file + ": key 'solver.kernel': bspline needs a box background");
     if (sv.kernel == KernelType::kBspline && scene.background.rotation_deg != 0.0)
       throw InputError(file + ": key 'solver.kernel': bspline needs an unrotated box background");
+    if (sv.kernel == KernelType::kBspline && scene.background.kernel_width > 0.0)
+      throw InputError(file + ": key 'background.kernel_width': bspline's lattice spacing is " +
+                       "background.element_size; kernel_width is for simplicial backgrounds");
   }
 
   if (r.has("output")) {
@@ -621,7 +627,7 @@ BuiltScene<Dim> build_scene(const Scene& scene) {
                                           : mesh_box_background(bs, Dim, bg_context);
     // Zero-volume or inverted cells break the kernel and the cell walk: refused, not warned.
     if (bs.type == "mesh") refuse_bad_cells(mesh, bs.path, scene.file + ": key 'background.path'");
-    built.background = make_background<Dim>(mesh, bs.extra_layer, bg_context);
+    built.background = make_background<Dim>(mesh, bs.extra_layer, bg_context, bs.kernel_width);
   }
   const BackgroundMesh<Dim>& bg = built.background;
 

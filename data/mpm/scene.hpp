@@ -28,6 +28,10 @@ struct BackgroundSpec {
   std::vector<double> center;  // ball centre, m [dim]
   double radius = 0.0;         // ball radius, m
   bool extra_layer = true;     // extrude one outer element layer (needed by UMLS at walls)
+  // Simplicial backgrounds: the kernel unit h (m) held fixed instead of derived from the mesh's
+  // edges (0: derived, see make_background), e.g. to compare meshes that differ only in their
+  // tessellation. At least the longest edge / 1.5.
+  double kernel_width = 0.0;
 };
 
 struct ShapeSpec {

@@ -49,16 +49,21 @@ BSMS_COMMAND(
             "across a gap");
         heat->add_option("--out", o->out, "output folder (metrics.json, heat_sticks.md, plots/)")
             ->required();
-        heat->add_option("--steps", o->steps, "training steps per model")->capture_default_str();
+        heat->add_option("--steps", o->steps, "training steps per model")
+            ->check(CLI::Range(int64_t{1}, int64_t{1000000000}))
+            ->capture_default_str();
         heat->add_option("--nodes", o->nodes, "nodes per stick (>= 5)")->capture_default_str();
         heat->add_option("--levels", o->levels, "levels of both hierarchies, input graph included")
             ->capture_default_str();
         heat->add_option("--gap", o->gap, "gap between the two test sticks, in units of dx (> 0)")
             ->capture_default_str();
         heat->add_option("--latent", o->latent, "MLP width")->capture_default_str();
-        heat->add_option("--batch", o->batch, "sticks per training step")->capture_default_str();
+        heat->add_option("--batch", o->batch, "sticks per training step")
+            ->check(CLI::Range(int64_t{1}, int64_t{1000000}))
+            ->capture_default_str();
         heat->add_option("--draws", o->test_draws,
                          "boundary-condition draws per test orientation combination")
+            ->check(CLI::Range(int64_t{1}, int64_t{1000000}))
             ->capture_default_str();
         heat->add_option("--seed", o->seed, "seed of weights, training and test draws")
             ->capture_default_str();
@@ -68,6 +73,7 @@ BSMS_COMMAND(
             "DIR/profiles.csv,\n"
             "DIR/train_log.csv, DIR/heat_sticks.md and DIR/plots/heat_sticks.png.");
         heat->callback([o] {
+          const bsms::cli::RemoveOnFailure cleanup(o->out);
           const auto metrics = bsms::run_heat_sticks(*o);
           print_summary(metrics, o->out);
         });
@@ -79,6 +85,7 @@ BSMS_COMMAND(
         auto data = std::make_shared<std::string>();
         z->add_option("--data", *data, "dataset folder with the larger meshes")->required();
         z->callback([r, data] {
+          const bsms::cli::RemoveOnFailure cleanup(r->out);
           bsms::zero_shot_experiment(*r, *data);
           std::cout << r->out << "/zero_shot.md\n";
         });
@@ -91,6 +98,7 @@ BSMS_COMMAND(
         auto data = std::make_shared<std::string>();
         s->add_option("--data", *data, "dataset folder to roll out (default: each run's own)");
         s->callback([r, data] {
+          const bsms::cli::RemoveOnFailure cleanup(r->out);
           bsms::seeding_experiment(*r, *data);
           std::cout << r->out << "/seeding.md\n";
         });
@@ -107,6 +115,7 @@ BSMS_COMMAND(
             ->required();
         l->add_option("--hard", *hard, "dataset folder with hard scenes (optional)");
         l->callback([r, data, hard] {
+          const bsms::cli::RemoveOnFailure cleanup(r->out);
           bsms::long_rollout_experiment(*r, *data, *hard);
           std::cout << r->out << "/long_rollout.md\n";
         });

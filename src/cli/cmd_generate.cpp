@@ -2,6 +2,7 @@
 //               [--shard k/n] [--set key=value]   randomized UMLS-MPM trajectories ->
 //               DIR/{split}.h5
 // bsms generate --merge SHARD_DIR... --out DIR    combines the parts of shard runs
+#include <filesystem>
 #include <iostream>
 
 #include "cli/command.hpp"
@@ -25,6 +26,15 @@ struct GenerateCliOptions {
 
 void run(const GenerateCliOptions& o) {
   namespace gen = bsms::generate;
+  namespace fs = std::filesystem;
+  bsms::cli::require_creatable_dir(o.out);
+  // A failed run leaves no folder it created, unless finished trajectories (resumable) are in it.
+  const bsms::cli::RemoveOnFailure cleanup(o.out, [&o] {
+    std::error_code ec;
+    for (fs::recursive_directory_iterator it(o.out, ec), end; !ec && it != end; it.increment(ec))
+      if (it->path().extension() == ".h5") return true;
+    return false;
+  });
   if (o.merge) {
     const gen::GenerateSummary s = gen::merge_parts(o.inputs, o.out);
     std::cout << "generate: merged " << o.inputs.size() << " shard folder(s) into " << o.out << ": "
@@ -43,10 +53,11 @@ void run(const GenerateCliOptions& o) {
   const gen::FamilyConfig family = gen::load_family(o.inputs[0], o.sets);
   options.threads = bsms::set_num_threads(o.threads);
   options.progress = true;
-  std::cerr << "generate: " << o.inputs[0] << " (family " << family.family << ", " << o.trajectories
+  // On stdout with the summary: stderr holds the progress and, on failure, one error line.
+  std::cout << "generate: " << o.inputs[0] << " (family " << family.family << ", " << o.trajectories
             << " trajectories, split " << o.split << ", seed " << o.seed << ", shard "
             << options.shard.index << "/" << options.shard.count << ", " << options.threads
-            << " concurrent single-threaded solves)\n";
+            << " concurrent single-threaded solves)" << std::endl;
   const gen::GenerateSummary s = gen::generate_dataset(family, options);
   std::cout << "generate: " << s.summary_line() << '\n';
   if (s.generated > 0)
@@ -73,7 +84,8 @@ BSMS_COMMAND(
           ->required();
       sub.add_option("--out", o->out, "output folder: train.h5, valid.h5, test.h5, generate.json")
           ->required();
-      sub.add_option("--trajectories", o->trajectories, "number of trajectories over all splits");
+      sub.add_option("--trajectories", o->trajectories, "number of trajectories over all splits")
+          ->check(CLI::Range(int64_t{0}, int64_t{100000000}));
       sub.add_option("--split", o->split, "train:valid:test weights")->default_val("80:10:10");
       sub.add_option("--seed", o->seed, "run seed (trajectory i uses a seed derived from it)")
           ->default_val(0);

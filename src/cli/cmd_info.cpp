@@ -1,5 +1,10 @@
 // bsms info FILE|RUN: summarises a dataset (bsms, public HDF5 layouts, a MeshGraphNets folder or
-// one of its .tfrecord splits), a multilevel graph file, simulation frames or a run.
+// one of its .tfrecord splits), a multilevel graph file, simulation frames, a run or a training
+// checkpoint (.pt).
+#include <torch/serialize/input-archive.h>
+
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iomanip>
@@ -110,6 +115,132 @@ void info_frames(const bsms::H5File& f) {
             << " particles\n";
 }
 
+// Digest of the entries of a torch archive: names, types, shapes and bytes (FNV-1a, 64 bits), so
+// that two checkpoints can be compared bit for bit (e.g. a resumed run with an uninterrupted one).
+struct ArchiveDigest {
+  int64_t tensors = 0;
+  int64_t values = 0;  // tensor elements
+  uint64_t hash = 0xcbf29ce484222325ull;
+  void add(const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) hash = (hash ^ p[i]) * 0x100000001b3ull;
+  }
+  void add(const std::string& text) { add(text.data(), text.size() + 1); }
+};
+
+// `names` renames keys and string values: the optimizer's archive names parameters by their
+// address in memory, which differs from process to process, the digest by their position.
+using Names = std::map<std::string, std::string>;
+void digest_archive(torch::serialize::InputArchive& archive, const std::string& prefix,
+                    const std::vector<std::string>& skip, const Names& names, ArchiveDigest& d) {
+  auto named = [&](const std::string& s) {
+    const auto it = names.find(s);
+    return it == names.end() ? s : it->second;
+  };
+  std::vector<std::pair<std::string, std::string>> keys;  // (digested name, key)
+  for (const auto& key : archive.keys())
+    if (std::find(skip.begin(), skip.end(), key) == skip.end()) keys.emplace_back(named(key), key);
+  std::sort(keys.begin(), keys.end());
+  for (const auto& [name, key] : keys) {
+    c10::IValue value;
+    archive.read(key, value);
+    d.add(prefix + name);
+    if (value.isObject()) {
+      torch::serialize::InputArchive sub;
+      archive.read(key, sub);
+      digest_archive(sub, prefix + name + ".", {}, names, d);
+    } else if (value.isString()) {
+      d.add(named(value.toStringRef()));
+    } else if (value.isTensor()) {
+      const at::Tensor t = value.toTensor().contiguous().cpu();
+      d.add(std::string(c10::toString(t.scalar_type())));
+      for (int64_t size : t.sizes()) d.add(&size, sizeof size);
+      d.add(t.data_ptr(), t.nbytes());
+      ++d.tensors;
+      d.values += t.numel();
+    } else if (value.isDouble()) {
+      const double x = value.toDouble();
+      d.add(&x, sizeof x);
+    } else if (value.isInt()) {
+      const int64_t x = value.toInt();
+      d.add(&x, sizeof x);
+    } else {
+      std::ostringstream text;
+      text << value;
+      d.add(text.str());
+    }
+  }
+}
+
+// torch::optim's layout: param_groups/G holds entries params/I, the address naming parameter I
+// of group G (the key of its state): names each address by that path.
+void parameter_names(torch::serialize::InputArchive& archive, const std::string& prefix,
+                     Names& names) {
+  for (const auto& key : archive.keys()) {
+    c10::IValue value;
+    archive.read(key, value);
+    if (value.isObject()) {
+      torch::serialize::InputArchive sub;
+      archive.read(key, sub);
+      parameter_names(sub, prefix + key + ".", names);
+    } else if (value.isString() && key.rfind("params/", 0) == 0) {
+      names[value.toStringRef()] = prefix + key;
+    }
+  }
+}
+
+std::string hex(uint64_t h) {
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  return text;
+}
+
+// A training checkpoint (or a module archive): step, losses, and digests of the model's and the
+// optimizer's state.
+void info_checkpoint(const std::string& path, const std::string& indent = "") {
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error&) {
+    throw bsms::InputError(path + ": not a readable checkpoint (truncated or corrupt)");
+  }
+  auto scalar = [&](const char* key, int64_t i) {
+    torch::Tensor t;
+    return archive.try_read(key, t) && t.numel() > i ? t.reshape({-1})[i].item<double>()
+                                                     : std::nan("");
+  };
+  const std::vector<std::string> state = {"optimizer", "step", "wall_s", "losses"};
+  ArchiveDigest model, optimizer;
+  try {
+    digest_archive(archive, "", state, {}, model);
+    torch::serialize::InputArchive sub;
+    if (archive.try_read("optimizer", sub)) {
+      Names names;
+      parameter_names(sub, "", names);
+      digest_archive(sub, "", {}, names, optimizer);
+    }
+  } catch (const c10::Error& e) {
+    const std::string what = e.what_without_backtrace();
+    throw bsms::InputError(path + ": unreadable entry (" + what.substr(0, what.find('\n')) + ")");
+  }
+  const double step = scalar("step", 0);
+  std::cout << indent << path << ": bsms " << (std::isnan(step) ? "module" : "training")
+            << " checkpoint\n";
+  if (!std::isnan(step)) {
+    std::cout << indent << "  step " << static_cast<int64_t>(step) << ", wall time "
+              << scalar("wall_s", 0) << " s";
+    if (!std::isnan(scalar("losses", 0)))
+      std::cout << ", loss " << scalar("losses", 0) << ", valid loss " << scalar("losses", 1)
+                << " (zero prediction " << scalar("losses", 2) << ")";
+    std::cout << '\n';
+  }
+  std::cout << indent << "  model: " << model.tensors << " tensors, " << model.values
+            << " values, digest " << hex(model.hash) << '\n';
+  if (optimizer.tensors > 0 || !std::isnan(step))
+    std::cout << indent << "  optimizer: " << optimizer.tensors << " tensors, " << optimizer.values
+              << " values, digest " << hex(optimizer.hash) << '\n';
+}
+
 void info_run(const std::string& run) {
   std::cout << run << ": bsms run\n";
   for (const char* name : {"config.json", "train_stats.json", "rollout/metrics.json"}) {
@@ -119,6 +250,14 @@ void info_run(const std::string& run) {
     if (j.contains("rmse_per_step")) j.erase("rmse_per_step");
     std::cout << "  " << name << ":\n" << j.dump(2) << '\n';
   }
+  const fs::path checkpoint = fs::path(run) / "checkpoints" / "latest.pt";
+  if (fs::exists(checkpoint)) {
+    try {
+      info_checkpoint(checkpoint.string(), "  ");
+    } catch (const bsms::InputError& e) {
+      std::cout << "  " << e.what() << '\n';
+    }
+  }
 }
 
 void info(const std::string& path) {
@@ -126,6 +265,10 @@ void info(const std::string& path) {
     if (fs::exists(fs::path(path) / "config.json")) return info_run(path);
     if (fs::exists(fs::path(path) / "meta.json")) return info_meshgraphnets(path);
     return info_dataset(path);  // public layout folder
+  }
+  if (fs::path(path).extension() == ".pt") {
+    if (!fs::is_regular_file(path)) throw bsms::InputError(path + ": no such checkpoint");
+    return info_checkpoint(path);
   }
   if (fs::path(path).extension() == ".tfrecord") {
     const fs::path parent = fs::path(path).parent_path();
@@ -145,11 +288,12 @@ void info(const std::string& path) {
                          "'; expected bsms-dataset, bsms-multilevel or bsms-frames)");
 }
 
-BSMS_COMMAND("info", "summarise a dataset, multilevel graph file, frames file or run folder",
-             [](CLI::App& sub) {
-               auto path = std::make_shared<std::string>();
-               sub.add_option("file", *path, "HDF5 file or run folder")->required();
-               sub.callback([path] { info(*path); });
-             });
+BSMS_COMMAND(
+    "info", "summarise a dataset, multilevel graph file, frames file, run folder or checkpoint",
+    [](CLI::App& sub) {
+      auto path = std::make_shared<std::string>();
+      sub.add_option("file", *path, "HDF5 file, run folder or checkpoint (.pt)")->required();
+      sub.callback([path] { info(*path); });
+    });
 
 }  // namespace

@@ -44,13 +44,15 @@ int parse_levels(const std::string& text) {
 }
 
 // Fails before any work when the output cannot be created (InputError: exit 2), so no run ends
-// in a write error after minutes of work. Creates a missing output folder.
+// in a write error after minutes of work. Creates nothing: the writer creates a missing output
+// folder, so a refused input leaves no empty folder behind.
 void check_output_path(const std::string& out) {
   std::error_code ec;
   if (std::filesystem::is_directory(out, ec)) {
     throw bsms::InputError(out + ": output is a folder, expected a file");
   }
-  bsms::ensure_parent_dir(out);
+  const std::filesystem::path parent = std::filesystem::path(out).parent_path();
+  bsms::cli::require_creatable_dir(parent.empty() ? "." : parent.string());
 }
 
 void print_table(const std::vector<bsms::LevelReport>& report) {
@@ -81,6 +83,8 @@ void run_preprocess_data(const PreprocessOptions& options) {
   }
   int levels = parse_levels(options.levels);
   if (levels == 0) levels = bsms::auto_levels(splits[0].mesh(0), seeding);
+  bsms::cli::require_creatable_dir(out);
+  const bsms::cli::RemoveOnFailure cleanup(out);
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec || !fs::is_directory(out))
@@ -174,7 +178,9 @@ BSMS_COMMAND(
              "nodes, it has at most twice the edges of level 0, and at most 25% of the node pairs "
              "inside its clusters are edges (A^2 roughly doubles the degree per level)")
           ->default_val("auto");
-      sub.add_option("--seed", options->seed, "random seeding: generator seed")->default_val(0);
+      sub.add_option("--seed", options->seed, "random seeding: generator seed")
+          ->check(CLI::NonNegativeNumber)
+          ->default_val(0);
       bsms::cli::add_threads_option(sub, options->threads);
       sub.callback([options] { run_preprocess(*options); });
     });

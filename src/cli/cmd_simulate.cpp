@@ -1,8 +1,11 @@
 // bsms simulate SCENE.json --out DIR: runs one UMLS-MPM scene and writes DIR/frames.h5 + .xdmf.
+#include <filesystem>
 #include <iostream>
 
 #include "cli/command.hpp"
+#include "core/error.hpp"
 #include "core/runtime.hpp"
+#include "data/mpm/scene.hpp"
 #include "data/mpm/simulation.hpp"
 
 namespace {
@@ -27,11 +30,22 @@ BSMS_COMMAND(
       bsms::cli::add_threads_option(sub, options->threads);
       sub.callback([options] {
         const bsms::mpm::Scene scene = bsms::mpm::load_scene(options->scene, options->sets);
+        // Refused before any work: a size typo, an output folder that cannot be created (made
+        // now, and removed again if the run fails).
+        bsms::mpm::check_scene_size(scene);
+        bsms::cli::require_creatable_dir(options->out);
+        const bsms::cli::RemoveOnFailure cleanup(options->out);
+        std::error_code ec;
+        std::filesystem::create_directories(options->out, ec);
+        if (ec || !std::filesystem::is_directory(options->out))
+          throw bsms::InputError(options->out + ": cannot create the output folder (" +
+                                 (ec ? ec.message() : std::string("not a folder")) + ")");
         const int threads = bsms::set_num_threads(options->threads);
-        std::cerr << "simulate: " << options->scene << " (" << scene.dim << "D, kernel "
+        // On stdout with the summary: stderr holds the progress and, on failure, one error line.
+        std::cout << "simulate: " << options->scene << " (" << scene.dim << "D, kernel "
                   << bsms::mpm::to_string(scene.solver.kernel) << ", transfer "
-                  << bsms::mpm::to_string(scene.solver.transfer) << ", " << threads
-                  << " threads)\n";
+                  << bsms::mpm::to_string(scene.solver.transfer) << ", " << threads << " threads)"
+                  << std::endl;
         const bsms::mpm::SimulationSummary summary =
             bsms::mpm::simulate_scene(scene, options->out, true);
         std::cout << "simulate: " << summary.summary_line() << "\n"

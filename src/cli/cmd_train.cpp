@@ -1,4 +1,6 @@
 // bsms train CONFIG.json [--set key=value] [--out RUN] [--resume] [--threads T]
+#include <filesystem>
+
 #include "cli/command.hpp"
 #include "pipeline/trainer.hpp"
 
@@ -28,7 +30,22 @@ BSMS_COMMAND(
           "valid_baseline = the loss of predicting zero, lr) and RUN/train_stats.json.\n"
           "Multilevel graphs are built on first use and cached in DATA/multilevel/ (or\n"
           "RUN/multilevel/ when the data folder is read-only).");
-      sub.callback([args] { bsms::train(args->request); });
+      sub.callback([args] {
+        const auto& r = args->request;
+        const std::string run =
+            r.out.empty()
+                ? (std::filesystem::path("runs") / std::filesystem::path(r.config_path).stem())
+                      .string()
+                : r.out;
+        // A run folder this command created goes when it fails before its first checkpoint
+        // (e.g. --resume of a folder that holds none); one with a checkpoint stays resumable.
+        const bsms::cli::RemoveOnFailure cleanup(run, [run] {
+          std::error_code ec;
+          return std::filesystem::exists(std::filesystem::path(run) / "checkpoints" / "latest.pt",
+                                         ec);
+        });
+        bsms::train(r);
+      });
     });
 
 }  // namespace

@@ -26,6 +26,27 @@ struct CommandRegistrar {
 void add_threads_option(CLI::App& sub, int& threads);
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets);
 
+// Throws InputError (exit 2) when the folder `dir` could not be created: it, or the nearest of
+// its ancestors that exists, is not a folder. Creates nothing, so a run refused later leaves no
+// empty output folder behind.
+void require_creatable_dir(const std::string& dir);
+
+// Removes `path` (a folder this command created) when the command fails, unless `keep` says the
+// partial output is worth keeping (e.g. resumable work). Construct before the work starts.
+class RemoveOnFailure {
+ public:
+  explicit RemoveOnFailure(std::string path, std::function<bool()> keep = {});
+  ~RemoveOnFailure();
+  RemoveOnFailure(const RemoveOnFailure&) = delete;
+  RemoveOnFailure& operator=(const RemoveOnFailure&) = delete;
+
+ private:
+  std::string path_;
+  bool existed_;
+  int uncaught_;
+  std::function<bool()> keep_;
+};
+
 }  // namespace bsms::cli
 
 #define BSMS_CONCAT_INNER(a, b) a##b

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <filesystem>
 #include <iostream>
 
 #include "cli/command.hpp"
@@ -28,6 +30,39 @@ void add_threads_option(CLI::App& sub, int& threads) {
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets) {
   sub.add_option("--set", sets, "override a config value: key.path=value (repeatable)")
       ->type_name("KEY=VALUE");
+}
+
+void require_creatable_dir(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::absolute(fs::path(dir), ec);
+  if (ec) p = dir;
+  for (fs::path q = p; !q.empty(); q = q.parent_path()) {
+    if (fs::exists(q, ec)) {
+      if (!fs::is_directory(q, ec))
+        throw InputError(dir + ": cannot create the output folder (" + q.string() +
+                         " is not a folder)");
+      return;
+    }
+    if (q == q.parent_path()) return;
+  }
+}
+
+RemoveOnFailure::RemoveOnFailure(std::string path, std::function<bool()> keep)
+    : path_(std::move(path)), keep_(std::move(keep)) {
+  std::error_code ec;
+  existed_ = path_.empty() || std::filesystem::exists(path_, ec);
+  uncaught_ = std::uncaught_exceptions();
+}
+
+RemoveOnFailure::~RemoveOnFailure() {
+  if (existed_ || std::uncaught_exceptions() <= uncaught_) return;
+  try {
+    if (keep_ && keep_()) return;
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  } catch (...) {
+  }
 }
 
 }  // namespace bsms::cli

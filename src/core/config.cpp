@@ -15,7 +15,7 @@ Json load_json_file(const std::string& path) {
     Json j = Json::parse(buffer.str(), nullptr, true, /*ignore_comments=*/true);
     if (!j.is_object()) throw InputError(path + ": expected a JSON object at the top level");
     return j;
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse_error, or out_of_range: 1e999
     throw InputError(path + ": malformed JSON (" + std::string(e.what()) + ")");
   }
 }
@@ -24,13 +24,21 @@ void apply_override(Json& config, const std::string& assignment, const std::stri
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
     throw InputError(source + ": --set '" + assignment + "' must look like key.path=value");
+  // JSON strings are UTF-8: other bytes would make every later dump() of the config (error
+  // messages, the resolved config written next to outputs) throw nlohmann's type_error.
+  try {
+    (void)Json(assignment).dump();
+  } catch (const nlohmann::json::type_error&) {
+    throw InputError(source + ": --set assignment is not valid UTF-8 text");
+  }
   const std::string key_path = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
   Json value;
   try {
     value = Json::parse(text);
-  } catch (const nlohmann::json::parse_error&) {
-    value = text;  // bare words are strings: --set solver.kernel=umls
+  } catch (const nlohmann::json::exception&) {
+    // Bare words are strings (--set solver.kernel=umls), and so is a number JSON cannot hold.
+    value = text;
   }
   Json* node = &config;
   std::stringstream parts(key_path);

@@ -305,6 +305,14 @@ hid_t open_attr(hid_t file, const std::string& path, const std::string& object,
     throw InputError(path + ": missing attribute " + object + "@" + name);
   const hid_t attr = H5Aopen_by_name(file, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
   if (attr < 0) throw InputError(path + ": cannot open attribute " + object + "@" + name);
+  // The readers below read one value: an array attribute would be written past its end.
+  const hid_t space = H5Aget_space(attr);
+  const hssize_t points = space < 0 ? -1 : H5Sget_simple_extent_npoints(space);
+  if (space >= 0) H5Sclose(space);
+  if (points != 1) {
+    H5Aclose(attr);
+    throw InputError(path + ": attribute " + object + "@" + name + " is not a single value");
+  }
   return attr;
 }
 }  // namespace

@@ -36,7 +36,8 @@ FitResult fit(torch::optim::Adam& optimizer, const FitOptions& o, const FitHooks
   const int64_t stop = o.stop_step > 0 ? std::min(o.stop_step, o.steps) : o.steps;
   auto wall = [&] { return o.wall_before + clock.seconds(); };
   while (r.step < stop) {
-    if (by_time && wall() >= o.time_budget_s) break;
+    // A budget spent before the session's first step (later steps settle it: `last` below).
+    if (by_time && r.step == o.first_step && wall() >= o.time_budget_s) break;
     Stopwatch step_clock;
     const double lr = learning_rate(o.optimizer, r.step, fit_progress(o, r.step, wall()));
     for (auto& group : optimizer.param_groups())
@@ -52,14 +53,19 @@ FitResult fit(torch::optim::Adam& optimizer, const FitOptions& o, const FitHooks
                            ": loss is not finite (lower optimizer.lr or check the data)");
     ++r.step;
     r.step_ms.push_back(step_clock.milliseconds());
+    // Whether this step is the last is settled before after_step, with the wall time it is
+    // told, so that it can checkpoint the last step of a time budget like any other.
+    const double now = wall();
+    const bool last = r.step >= stop || (by_time && now >= o.time_budget_s);
     std::string extra;
-    if (hooks.after_step) extra = hooks.after_step(FitStep{r.step, wall(), r.last_loss, lr});
+    if (hooks.after_step) extra = hooks.after_step(FitStep{r.step, now, r.last_loss, lr, last});
     if (!o.quiet) {
       std::ostringstream text;
       text << "step " << r.step << ", loss " << std::setprecision(3) << r.last_loss << extra << ", "
            << std::setprecision(3) << 1000.0 / r.step_ms.back() << " steps/s";
       bar.update(by_time ? static_cast<int64_t>(wall()) : r.step, text.str());
     }
+    if (last) break;
   }
   r.wall_s = wall();
   if (!o.quiet) bar.finish();

@@ -32,6 +32,7 @@ struct FitStep {
   double wall_s = 0.0;  // run wall time after it
   double loss = 0.0;
   double lr = 0.0;
+  bool last = false;  // fit() stops after it (the last step, stop_step or the time budget spent)
 };
 
 struct FitHooks {

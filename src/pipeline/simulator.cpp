@@ -96,7 +96,7 @@ torch::Tensor LearnedSimulator::predict(const Batch& batch) {
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Optimizer& optimizer, int64_t step, double wall_s) {
+                     torch::optim::Optimizer& optimizer, const CheckpointInfo& info) {
   AtomicOutput out(path);
   try {
     torch::serialize::OutputArchive archive;
@@ -104,8 +104,10 @@ void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
     torch::serialize::OutputArchive optimizer_archive;
     optimizer.save(optimizer_archive);
     archive.write("optimizer", optimizer_archive);
-    archive.write("step", torch::tensor({step}, torch::kInt64));
-    archive.write("wall_s", torch::tensor({wall_s}, torch::kFloat64));
+    archive.write("step", torch::tensor({info.step}, torch::kInt64));
+    archive.write("wall_s", torch::tensor({info.wall_s}, torch::kFloat64));
+    archive.write("losses", torch::tensor({info.loss, info.valid_loss, info.valid_baseline},
+                                          torch::kFloat64));
     archive.save_to(out.temp_path());
   } catch (const c10::Error& e) {
     throw IoError(path + ": cannot write checkpoint (" + std::string(e.what_without_backtrace()) +
@@ -136,6 +138,12 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
     archive.read("wall_s", wall);
     info.step = step.item<int64_t>();
     info.wall_s = wall.item<double>();
+    torch::Tensor losses;
+    if (archive.try_read("losses", losses) && losses.numel() == 3) {
+      info.loss = losses[0].item<double>();
+      info.valid_loss = losses[1].item<double>();
+      info.valid_baseline = losses[2].item<double>();
+    }
   } catch (const c10::Error& e) {
     std::string what = e.what_without_backtrace();
     throw InputError(path + ": checkpoint lacks training state (" +

@@ -4,6 +4,7 @@
 #include <torch/nn/module.h>
 #include <torch/optim/optimizer.h>
 
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -60,12 +61,17 @@ class LearnedSimulator : public torch::nn::Module {
 
 // Checkpoint: simulator parameters and buffers, optimizer state and the training step, written
 // atomically. Errors (missing, corrupt, mismatched shapes) are InputErrors naming the file.
-void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Optimizer& optimizer, int64_t step, double wall_s);
 struct CheckpointInfo {
   int64_t step = 0;
   double wall_s = 0.0;
+  // The losses of the step and its validation (NaN when not measured, or in checkpoints written
+  // before they were saved): what a resumed run that trains no further step reports.
+  double loss = std::nan("");
+  double valid_loss = std::nan("");
+  double valid_baseline = std::nan("");
 };
+void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                     torch::optim::Optimizer& optimizer, const CheckpointInfo& info);
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
                                torch::optim::Optimizer* optimizer);
 

@@ -1,9 +1,12 @@
 #include "pipeline/trainer.hpp"
 
 #include <ATen/CPUGeneratorImpl.h>
+#include <signal.h>
 #include <torch/torch.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -292,15 +295,31 @@ TrainBatch make_train_batch(const Resolved& r, const TrainConfig& config, const 
   return b;
 }
 
-// Drops log rows after `step` (resume) and returns the file for appending.
+// A log row's step, or -1 unless `line` is a whole row (a step and 5 more fields).
+int64_t log_row_step(const std::string& line) {
+  if (std::count(line.begin(), line.end(), ',') != 5) return -1;
+  const std::string step = line.substr(0, line.find(','));
+  if (step.empty() || step.size() > 18 ||
+      !std::all_of(step.begin(), step.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return -1;
+  return std::stoll(step);
+}
+
+// Drops log rows after `step` (resume) and returns the file for appending. A session killed
+// mid-write may have left rows past its checkpoint and a torn last line (no newline): only whole,
+// newline-terminated rows up to the checkpoint's step are kept, so the log holds each step once.
 std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fresh) {
   std::vector<std::string> kept;
   if (!fresh && fs::exists(path)) {
-    std::ifstream in(path);
+    std::ifstream in(path, std::ios::binary);
     std::string line;
+    int64_t last = 0;
     while (std::getline(in, line)) {
-      if (line.rfind("step", 0) == 0) continue;
-      if (std::stoll(line.substr(0, line.find(','))) <= keep_until_step) kept.push_back(line);
+      if (in.eof()) break;  // no newline after it: torn by a kill
+      const int64_t row = log_row_step(line);
+      if (row <= last || row > keep_until_step) continue;  // header, torn or past the checkpoint
+      kept.push_back(line);
+      last = row;
     }
   }
   {
@@ -312,6 +331,28 @@ std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fr
     out.commit();
   }
   return std::ofstream(path, std::ios::app);
+}
+
+// Removes the temporary files (NAME.tmp.PID.N, see AtomicOutput) that sessions killed while
+// writing left in `dir`; those of a live process are kept.
+void remove_stale_temporaries(const fs::path& dir) {
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const size_t tmp = name.rfind(".tmp.");
+    if (tmp == std::string::npos || !it->is_regular_file(ec)) continue;
+    const std::string rest = name.substr(tmp + 5);  // PID.N
+    const size_t dot = rest.find('.');
+    const std::string pid = rest.substr(0, dot);
+    if (dot == std::string::npos || pid.empty() || pid.size() > 9 ||
+        !std::all_of(rest.begin(), rest.end(),
+                     [](char c) { return c == '.' || (c >= '0' && c <= '9'); }))
+      continue;
+    const pid_t owner = static_cast<pid_t>(std::stol(pid));
+    if (owner == ::getpid() || ::kill(owner, 0) == 0 || errno != ESRCH) continue;
+    std::error_code ignored;
+    fs::remove(it->path(), ignored);
+  }
 }
 
 }  // namespace
@@ -328,6 +369,10 @@ TrainResult train(const TrainRequest& request) {
                        ? (fs::path("runs") / fs::path(request.config_path).stem()).string()
                        : request.out;
   const std::string run = result.run_dir;
+  // First thing: sessions killed while writing may have left temporary files.
+  for (const fs::path& dir : {fs::path(run), fs::path(run) / "checkpoints",
+                              fs::path(run) / "multilevel", fs::path(config.data) / "multilevel"})
+    remove_stale_temporaries(dir);
   const Dataset train_data = Dataset::open_split(config.data, "train");
   // A missing valid split validates on training data and says so; a broken one is an error.
   const bool has_valid = Dataset::has_split(config.data, "valid");
@@ -346,7 +391,9 @@ TrainResult train(const TrainRequest& request) {
                      ": run folder already holds a checkpoint; pass --resume to continue it "
                      "or --out for a new run");
   if (request.resume && !fs::exists(checkpoint))
-    throw InputError(checkpoint + ": nothing to resume (no checkpoint in this run folder)");
+    throw InputError(checkpoint +
+                     ": nothing to resume (no checkpoint in this run folder; a session stopped "
+                     "before its first checkpoint is started again without --resume)");
 
   const Json run_json = {{"config", to_json(config)},
                          {"features_resolved", resolved.spec_json()},
@@ -377,10 +424,11 @@ TrainResult train(const TrainRequest& request) {
 
   int64_t step = 0;
   double wall_before = 0.0;
+  CheckpointInfo resumed;  // the losses at the checkpoint: reported if no step is trained
   if (request.resume) {
-    const CheckpointInfo info = load_checkpoint(checkpoint, *simulator, &optimizer);
-    step = info.step;
-    wall_before = info.wall_s;
+    resumed = load_checkpoint(checkpoint, *simulator, &optimizer);
+    step = resumed.step;
+    wall_before = resumed.wall_s;
   }
   std::ofstream log = open_log(run_log_path(run), step, !request.resume);
 
@@ -392,6 +440,18 @@ TrainResult train(const TrainRequest& request) {
   // Validation loss and, beside it, the loss of predicting zero acceleration (same units).
   struct Validation {
     double loss = std::nan(""), baseline = std::nan("");
+  };
+  // One log row; a checkpoint's row is flushed before the checkpoint is written, so that every
+  // step up to a checkpoint is in the log whenever a session is killed.
+  auto log_row = [&](int64_t at, double wall_s, double loss, const Validation* v, double lr) {
+    log << at << ',' << std::setprecision(6) << wall_s << ',' << loss << ',';
+    if (v)
+      log << v->loss << ',' << v->baseline;
+    else
+      log << ',';
+    log << ',' << lr << '\n';
+    if (v) log.flush();
+    if (!log) throw IoError(run_log_path(run) + ": cannot write");
   };
   auto validate = [&]() {
     torch::NoGradGuard no_grad;
@@ -449,9 +509,7 @@ TrainResult train(const TrainRequest& request) {
   fit_options.wall_before = wall_before;
   fit_options.stop_step = request.until;
   fit_options.quiet = request.quiet;
-  const int64_t stop_step =
-      request.until > 0 ? std::min(request.until, config.steps) : config.steps;
-  Validation last_valid;
+  Validation last_valid{resumed.valid_loss, resumed.valid_baseline};
   FitHooks hooks;
   hooks.loss = [&](int64_t index) {
     const TrainBatch b = training_batch(index);
@@ -460,19 +518,15 @@ TrainResult train(const TrainRequest& request) {
   // Validation and an atomic checkpoint every valid_every steps and at the last step; one log
   // row per step (validation columns empty between checks).
   hooks.after_step = [&](const FitStep& s) {
-    const bool checkpoint_now =
-        s.step % config.valid_every == 0 || s.step == config.steps || s.step == stop_step;
-    std::string valid_text = ",";
+    const bool checkpoint_now = s.step % config.valid_every == 0 || s.last;
     if (checkpoint_now) {
       last_valid = validate();
-      std::ostringstream v;
-      v << std::setprecision(6) << last_valid.loss << ',' << last_valid.baseline;
-      valid_text = v.str();
-      save_checkpoint(checkpoint, *simulator, optimizer, s.step, s.wall_s);
+      log_row(s.step, s.wall_s, s.loss, &last_valid, s.lr);
+      save_checkpoint(checkpoint, *simulator, optimizer,
+                      {s.step, s.wall_s, s.loss, last_valid.loss, last_valid.baseline});
+    } else {
+      log_row(s.step, s.wall_s, s.loss, nullptr, s.lr);
     }
-    log << s.step << ',' << std::setprecision(6) << s.wall_s << ',' << s.loss << ',' << valid_text
-        << ',' << s.lr << '\n';
-    if (checkpoint_now) log.flush();
     std::ostringstream extra;
     if (std::isfinite(last_valid.loss))
       extra << ", valid " << std::setprecision(3) << last_valid.loss << " (zero "
@@ -482,14 +536,9 @@ TrainResult train(const TrainRequest& request) {
   simulator->train();
   const FitResult fitted = fit(optimizer, fit_options, hooks);
   step = fitted.step;
-  const double last_loss = fitted.last_loss;
-  // A time budget may stop between checkpoints: save where we are.
-  if (step > fit_options.first_step && step % config.valid_every != 0 && step != stop_step) {
-    last_valid = validate();
-    save_checkpoint(checkpoint, *simulator, optimizer, step, fitted.wall_s);
-    log << step << ',' << fitted.wall_s << ',' << last_loss << ',' << last_valid.loss << ','
-        << last_valid.baseline << ',' << fitted.last_lr << '\n';
-  }
+  // The last step of the session was checkpointed (a time budget's too: FitStep::last); without
+  // a step the losses are the checkpoint's.
+  const double last_loss = step > fit_options.first_step ? fitted.last_loss : resumed.loss;
   log.close();
 
   result.steps = step;

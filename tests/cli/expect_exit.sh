@@ -1,8 +1,15 @@
 #!/usr/bin/env bash
-# Usage: expect_exit.sh CODE ABSENT_PATH COMMAND...
+# Usage: expect_exit.sh [--match REGEX] CODE ABSENT_PATH COMMAND...
 # Runs COMMAND, checks its exit code is CODE, that it printed exactly one line on stderr (when
-# CODE is 2) and that ABSENT_PATH (use - for none) does not exist afterwards.
+# CODE is 2), that this line matches the extended regular expression REGEX (when given: the
+# file, key or option the message must name) and that ABSENT_PATH (use - for none) does not
+# exist afterwards.
 set -u
+match=
+if [ "${1:-}" = --match ]; then
+  match=$2
+  shift 2
+fi
 want=$1 absent=$2
 shift 2
 err=$(mktemp)
@@ -15,6 +22,9 @@ if [ "$got" != "$want" ]; then
 fi
 if [ "$want" = 2 ] && [ "$lines" != 1 ]; then
   echo "expected one line on stderr, got $lines:"; cat "$err"; status=1
+fi
+if [ -n "$match" ] && ! grep -Eq -e "$match" "$err"; then
+  echo "stderr does not match /$match/:"; cat "$err"; status=1
 fi
 if [ "$absent" != - ] && [ -e "$absent" ]; then
   echo "output $absent exists after a failed run"; status=1

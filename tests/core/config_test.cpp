@@ -87,5 +87,22 @@ TEST(Config, ReaderRejectsUnknownMissingAndMistypedKeys) {
   EXPECT_EQ(range, "s.json: key 'material.E' must be > 0");
 }
 
+// Fuzzing regressions (fuzz/fuzz_config.cpp): a number JSON cannot hold and bytes that are not
+// UTF-8 are InputErrors (they escaped as nlohmann's out_of_range and type_error).
+TEST(Config, FuzzNumberOverflowAndNonUtf8AreInputErrors) {
+  const auto huge = write_temp("bsms_huge_number.json", R"({"dt": 0.49E4422222222222})");
+  EXPECT_NE(message_of([&] { load_json_file(huge); }).find("malformed"), std::string::npos);
+  Json j = Json::parse(R"({"solver": {"cfl": 0.5}})");
+  apply_override(j, "solver.cfl=1e99999", "--set");  // taken as a string, like a bare word
+  EXPECT_EQ(j["solver"]["cfl"], "1e99999");
+  EXPECT_NE(message_of([&] {
+              apply_override(j, "sample.count=[0,\xcd\xa2\xff]", "--set");
+            }).find("UTF-8"),
+            std::string::npos);
+  EXPECT_NE(message_of([&] { apply_override(j, "a\xff=1", "--set"); }).find("UTF-8"),
+            std::string::npos);
+  EXPECT_NO_THROW(j.dump());
+}
+
 }  // namespace
 }  // namespace bsms

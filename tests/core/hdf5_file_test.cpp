@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 
 #include "core/error.hpp"
 
@@ -99,6 +100,37 @@ TEST(Hdf5File, AtomicOutputLeavesNothingUnlessCommitted) {
   H5File f(path, H5File::Mode::kRead);
   EXPECT_EQ(f.read<int32_t>("/x"), (std::vector<int32_t>{1, 2, 3}));
   EXPECT_THROW(ensure_parent_dir("/proc/bsms_forbidden/x.h5"), InputError);
+}
+
+// Fuzzing regression (fuzz/fuzz_multilevel.cpp): attributes holding several values were read
+// into one value's storage (stack-buffer-overflow); they are an InputError.
+TEST(Hdf5File, FuzzArrayAttributesAreInputErrors) {
+  const std::string path = temp_path("array_attr.h5");
+  {
+    H5File f(path, H5File::Mode::kTruncate);
+    const hsize_t three = 3;
+    const hid_t space = H5Screate_simple(1, &three, nullptr);
+    const int64_t ints[3] = {1, 2, 3};
+    const double reals[3] = {0.5, 1.5, 2.5};
+    const char text[3][4] = {"abc", "def", "ghi"};
+    const hid_t str = H5Tcopy(H5T_C_S1);
+    H5Tset_size(str, 4);
+    for (const auto& [name, type, mem, data] : {std::tuple<const char*, hid_t, hid_t, const void*>{
+                                                    "ints", H5T_STD_I64LE, H5T_NATIVE_INT64, ints},
+                                                {"reals", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, reals},
+                                                {"text", str, str, text}}) {
+      const hid_t attr = H5Acreate2(f.id(), name, type, space, H5P_DEFAULT, H5P_DEFAULT);
+      H5Awrite(attr, mem, data);
+      H5Aclose(attr);
+    }
+    H5Tclose(str);
+    H5Sclose(space);
+  }
+  H5File f(path, H5File::Mode::kRead);
+  EXPECT_THROW(f.attr_int("/", "ints"), InputError);
+  EXPECT_THROW(f.attr_double("/", "reals"), InputError);
+  EXPECT_THROW(f.attr_string("/", "text"), InputError);
+  fs::remove(path);
 }
 
 }  // namespace

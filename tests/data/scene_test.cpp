@@ -177,6 +177,14 @@ TEST(Scene, BadScenesNameFileAndKey) {
   EXPECT_NE(m.find("nowhere"), std::string::npos) << m;
   m = input_error(kScenes + "vibrating_bar.json", {"bodies.0.shape.max=[40.0, 1.0]"});
   EXPECT_NE(m.find("outside the background"), std::string::npos) << m;
+  m = input_error(kScenes + "rotating_square.json",
+                  {"solver.kernel=bspline", "background.kernel_width=0.1"});
+  EXPECT_NE(m.find("background.kernel_width"), std::string::npos) << m;
+  m = input_error(kScenes + "rotating_square.json", {"background.kernel_width=1e-4"});
+  EXPECT_NE(m.find("kernel_width"), std::string::npos) << m;
+  EXPECT_NE(m.find("longest edge"), std::string::npos) << m;
+  m = input_error(kScenes + "rotating_square.json", {"background.kernel_width=-1"});
+  EXPECT_NE(m.find("background.kernel_width"), std::string::npos) << m;
   EXPECT_NE(input_error(kScenes + "vibrating_bar.json", {"dim=4"}), "");
   EXPECT_NE(input_error(kScenes + "vibrating_bar.json", {"solver.cfl=0"}), "");
 }

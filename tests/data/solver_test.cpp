@@ -202,10 +202,14 @@ TEST(RotatingSquare, FlipDoesNotTrackAffineMomentum) {
 }
 
 // Tip y-displacement of the cantilever (particle nearest the right end of the axis), sampled at
-// 60 equal intervals of 3 s, on its Delaunay background rotated by `degrees`.
-std::vector<double> cantilever_tip(double degrees) {
-  const Scene scene = load_scene(scene_path("cantilever.json"),
-                                 {"background.rotation_deg=" + std::to_string(degrees)});
+// 60 equal intervals of 3 s, on its Delaunay background rotated by `degrees` with the kernel unit h
+// held at `kernel_width` (m).
+std::vector<double> cantilever_tip(double degrees, double kernel_width) {
+  char rotation[64];
+  std::snprintf(rotation, sizeof rotation, "background.rotation_deg=%.9f", degrees);
+  const Scene scene =
+      load_scene(scene_path("cantilever.json"),
+                 {rotation, "background.kernel_width=" + std::to_string(kernel_width)});
   MpmSolver<2> solver = make_solver(scene);
   const auto& p = solver.particles();
   int32_t tip = 0;
@@ -221,24 +225,51 @@ std::vector<double> cantilever_tip(double degrees) {
 }
 
 TEST(Cantilever, TipDeflectionRobustToMeshRotation) {
-  // Paper: 1.27 / 2.18 / 4.72 % at 15 / 30 / 45 degrees against the unrotated mesh.
-  const std::vector<double> reference = cantilever_tip(0.0);
-  double peak = 0.0;
-  for (double v : reference) peak = std::max(peak, std::abs(v));
-  const double paper[3] = {0.0127, 0.0218, 0.0472};
-  for (int i = 0; i < 3; ++i) {
-    const double degrees = 15.0 * (i + 1);
-    const std::vector<double> tip = cantilever_tip(degrees);
-    double sum = 0.0;
-    for (size_t k = 0; k < tip.size(); ++k)
-      sum += (tip[k] - reference[k]) * (tip[k] - reference[k]);
-    const double error = std::sqrt(sum / tip.size()) / peak;
+  // What this measures, and why not on one mesh per angle. gmsh's Delaunay tessellation is not a
+  // continuous function of its input: a further 1e-6 degree of rotation (or an element size
+  // changed by 1e-9 relative) gives another mesh, and two such equivalent unrotated meshes give
+  // tip histories that differ by 1.8 % RMSE of the peak (median of 12 meshes; up to 6.4 %), mostly
+  // through the free nodes next to the clamp. The automatic h (longest edge / 1.45, one outlier
+  // edge) adds jumps of up to 6 % in h between meshes. One mesh per angle thus measured one draw
+  // of that noise (0.72 / 0.49 / 2.34 %, not monotonic in the angle), which anything that reaches
+  // the mesher reshuffles. Here each angle is represented by the mean tip history of kMeshes
+  // equivalent meshes (rotation + k 1e-6 degree) with h held at 0.53 m (>= every mesh's longest
+  // edge / 1.5): the means differ by the rotation, and the paper's errors bound that difference
+  // (measured 0.91 / 1.02 / 3.34 %; single meshes against the unrotated mean: 0.78 to 5.30 %).
+  constexpr int kMeshes = 3;
+  constexpr double kKernelWidth = 0.53;
+  const double paper[4] = {0.0, 0.0127, 0.0218, 0.0472};  // 0 / 15 / 30 / 45 degrees
+  std::vector<double> mean[4];
+  double single_min = 1.0, single_max = 0.0;  // one mesh per angle against the unrotated mean
+  for (int i = 0; i < 4; ++i) {
+    mean[i].assign(60, 0.0);
+    std::vector<std::vector<double>> tips;
+    for (int k = 0; k < kMeshes; ++k) {
+      tips.push_back(cantilever_tip(15.0 * i + 1e-6 * k, kKernelWidth));
+      for (int t = 0; t < 60; ++t) mean[i][t] += tips.back()[t] / kMeshes;
+    }
+    if (i == 0) continue;
+    double peak = 0.0;
+    for (double v : mean[0]) peak = std::max(peak, std::abs(v));
+    auto error = [&](const std::vector<double>& tip) {
+      double sum = 0.0;
+      for (int t = 0; t < 60; ++t) sum += (tip[t] - mean[0][t]) * (tip[t] - mean[0][t]);
+      return std::sqrt(sum / 60) / peak;
+    };
+    for (const auto& tip : tips) {
+      single_min = std::min(single_min, error(tip));
+      single_max = std::max(single_max, error(tip));
+    }
     std::printf(
-        "cantilever rotated %.0f deg: tip RMSE %.2f %% of the peak deflection %.3f m (paper %.2f "
-        "%%)\n",
-        degrees, 100 * error, peak, 100 * paper[i]);
-    EXPECT_LT(error, paper[i]);
+        "cantilever rotated %.0f deg: tip RMSE of the mean of %d meshes %.2f %% of the peak "
+        "deflection %.3f m (paper %.2f %%)\n",
+        15.0 * i, kMeshes, 100 * error(mean[i]), peak, 100 * paper[i]);
+    EXPECT_LT(error(mean[i]), paper[i]);
   }
+  std::printf("single rotated meshes against the unrotated mean: %.2f to %.2f %%\n",
+              100 * single_min, 100 * single_max);
+  double peak = 0.0;
+  for (double v : mean[0]) peak = std::max(peak, std::abs(v));
   EXPECT_GT(peak, 1.2);  // static q L^4 / (8 E I) = 0.74 m, dynamic overshoot about twice that
   EXPECT_LT(peak, 1.8);
 }

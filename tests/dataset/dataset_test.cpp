@@ -135,5 +135,84 @@ TEST(Dataset, RejectsFilesThatAreNotDatasets) {
   }
 }
 
+// Fuzzing regression (fuzz/fuzz_dataset.cpp): a body_id dataset with fewer entries than nodes
+// was accepted, and users of TrajectoryMesh index body_id by node.
+TEST(Dataset, FuzzShortBodyIdIsAnInputError) {
+  const fs::path dir = temp_dir("short_body_id");
+  const std::string path = (dir / "train.h5").string();
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(7, 2));
+    w.commit();
+  }
+  {
+    H5File f(path, H5File::Mode::kReadWrite);
+    f.write<int32_t>("/trajectories/000000/body_id", std::vector<int32_t>{}, {0});
+  }
+  const Dataset d(path);
+  try {
+    d.mesh(0);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("body_id"), std::string::npos) << e.what();
+  }
+}
+
+// Fuzzing regression (fuzz/fuzz_dataset.cpp): only the first trajectory's fields are checked on
+// opening; a later trajectory whose field is a scalar dataset made num_frames and read index an
+// empty shape (null dereference).
+TEST(Dataset, FuzzScalarFieldInALaterTrajectoryIsAnInputError) {
+  const fs::path dir = temp_dir("scalar_field");
+  const std::string path = (dir / "train.h5").string();
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(7, 2));
+    w.add(make_trajectory(8, 2));
+    w.commit();
+  }
+  {
+    H5File f(path, H5File::Mode::kReadWrite);
+    f.remove("/trajectories/000001/stress");  // fields[0]: names sort
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t set = H5Dcreate2(f.id(), "/trajectories/000001/stress", H5T_NATIVE_FLOAT, space,
+                                 H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    const float value = 1.0f;
+    H5Dwrite(set, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value);
+    H5Dclose(set);
+    H5Sclose(space);
+  }
+  const Dataset d(path);
+  EXPECT_EQ(d.num_frames(0), 2);
+  EXPECT_THROW(d.num_frames(1), InputError);
+  EXPECT_THROW(d.read(1, "stress", 0), InputError);
+}
+
+// Fuzzing regression (fuzz/fuzz_dataset.cpp): a scalar mesh_pos in a public single-file dataset
+// made the reader take the last extent of an empty shape (null dereference).
+TEST(Dataset, FuzzScalarMeshPosIsAnInputError) {
+  const fs::path dir = temp_dir("scalar_mesh_pos");
+  const std::string path = (dir / "train.h5").string();
+  {
+    H5File f(path, H5File::Mode::kTruncate);
+    f.create_group("/0");
+    const hid_t space = H5Screate(H5S_SCALAR);
+    const hid_t set = H5Dcreate2(f.id(), "/0/mesh_pos", H5T_NATIVE_FLOAT, space, H5P_DEFAULT,
+                                 H5P_DEFAULT, H5P_DEFAULT);
+    const float value = 1.0f;
+    H5Dwrite(set, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value);
+    H5Dclose(set);
+    H5Sclose(space);
+    f.write<int32_t>("/0/cells", std::vector<int32_t>{0, 1, 2}, {1, 3});
+    f.write<int32_t>("/0/node_type", std::vector<int32_t>{0, 0, 0}, {3});
+    f.write<float>("/0/velocity", std::vector<float>(12, 0.0f), {2, 3, 2});
+  }
+  try {
+    Dataset d(path);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("mesh_pos"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace bsms

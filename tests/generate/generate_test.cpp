@@ -447,4 +447,13 @@ TEST(Generate, EveryFamilyMakesATrajectory) {
   }
 }
 
+// Fuzzing regression (fuzz/fuzz_config.cpp): a background corner shorter than the scene's
+// dimension was read past its end by the samplers (heap-buffer-overflow under ASan).
+TEST(Family, FuzzShortBackgroundCornerIsAnInputError) {
+  for (const char* family : {"disks2d.json", "press2d.json", "cantilever2d.json"}) {
+    const std::string m = input_error(kScenes + family, {"scene.background.min=[0]"});
+    EXPECT_NE(m.find("scene.background"), std::string::npos) << family << ": " << m;
+  }
+}
+
 }  // namespace

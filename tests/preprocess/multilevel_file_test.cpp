@@ -219,5 +219,35 @@ TEST(MeshFormats, Msh22And41GiveTheSameGraph) {
   }
 }
 
+// Fuzzing regression (fuzz/fuzz_multilevel.cpp): an array attribute where the reader expects
+// one value (num_levels of two int64) was read into a single int64 (stack-buffer-overflow).
+TEST(MultilevelFile, FuzzArrayAttributeIsAnInputError) {
+  expect_rejected(
+      [](H5File& f) {
+        H5Adelete_by_name(f.id(), "/", "num_levels", H5P_DEFAULT);
+        const hsize_t two = 2;
+        const int64_t values[2] = {3, 3};
+        const hid_t space = H5Screate_simple(1, &two, nullptr);
+        const hid_t attr =
+            H5Acreate2(f.id(), "num_levels", H5T_STD_I64LE, space, H5P_DEFAULT, H5P_DEFAULT);
+        H5Awrite(attr, H5T_NATIVE_INT64, values);
+        H5Aclose(attr);
+        H5Sclose(space);
+      },
+      "num_levels");
+}
+
+// Fuzzing regression (fuzz/fuzz_multilevel.cpp): num_nodes sized the CSR arrays before any check,
+// so a huge value threw std::length_error or exhausted memory instead of an InputError.
+TEST(MultilevelFile, FuzzHugeNumNodesIsAnInputError) {
+  expect_rejected([](H5File& f) { f.set_attr("/level_0", "num_nodes", int64_t{1} << 40); },
+                  "/level_0@num_nodes");
+  expect_rejected(
+      [](H5File& f) { f.set_attr("/level_0", "num_nodes", int64_t{9223372024274241681}); },
+      "/level_0@num_nodes");
+  expect_rejected([](H5File& f) { f.set_attr("/level_1", "num_nodes", int64_t{1} << 40); },
+                  "/level_1/pooled");
+}
+
 }  // namespace
 }  // namespace bsms
