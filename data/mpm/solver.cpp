@@ -110,6 +110,14 @@ MpmSolver<Dim>::MpmSolver(BackgroundMesh<Dim> background, std::vector<Material> 
     if (c.mirror_count > 0) ghosts_.push_back(c);
     ++constraint_offsets_[c.node + 1];
   }
+  ghost_writes_.assign(ghosts_.size(), 1);
+  {
+    std::vector<uint8_t> seen(n, 0);
+    for (size_t g = ghosts_.size(); g-- > 0;) {
+      if (seen[ghosts_[g].node]) ghost_writes_[g] = 0;
+      seen[ghosts_[g].node] = 1;
+    }
+  }
   for (int32_t i = 0; i < n; ++i) constraint_offsets_[i + 1] += constraint_offsets_[i];
   constraints_.resize(constraint_offsets_[n]);
   std::vector<int32_t> fill(constraint_offsets_.begin(), constraint_offsets_.end() - 1);
@@ -360,6 +368,7 @@ void MpmSolver<Dim>::step(double dt) {
     }
 #pragma omp for schedule(static)
     for (size_t g = 0; g < ghosts_.size(); ++g) {
+      if (!ghost_writes_[g]) continue;  // a later ghost of the same node writes it (no race)
       grid_v_[ghosts_[g].node] = ghost_v_[g];
       grid_v_new_[ghosts_[g].node] = ghost_v_new_[g];
       grid_share_[ghosts_[g].node] = 0.0;  // a velocity again (walls do not conserve momentum)

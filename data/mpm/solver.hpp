@@ -114,6 +114,9 @@ class MpmSolver {
   std::vector<int32_t> constraint_offsets_;       // [N + 1] CSR over nodes
   std::vector<NodeConstraint<Dim>> constraints_;  // all constrained nodes, by node (CSR)
   std::vector<NodeConstraint<Dim>> ghosts_;       // ghost nodes, mirrored after the others
+  // Per ghost: 1 when no later ghost has its node (a corner node can be a ghost of two walls;
+  // the last one's image stands, as in a serial loop, whatever the thread count).
+  std::vector<uint8_t> ghost_writes_;
   double max_wave_speed_ = 0.0;
   double time_ = 0.0;
   int64_t steps_ = 0;
