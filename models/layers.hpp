@@ -87,6 +87,9 @@ class Normalizer : public torch::nn::Module {
   torch::Tensor mean() const;                             // [C] float64
   torch::Tensor std() const;                              // [C] float64, >= std_epsilon
   int64_t size() const { return size_; }
+  // The sums the statistics are made of (rows, sum, sum of squares): data-parallel training adds
+  // them up over the ranks after accumulating.
+  std::vector<torch::Tensor> sums() { return {count_, sum_, sum_squares_}; }
 
  private:
   int64_t size_;

@@ -22,6 +22,9 @@ struct CommandRegistrar {
   explicit CommandRegistrar(Command command) { command_registry().push_back(std::move(command)); }
 };
 
+// The command line this process was started with (argv), e.g. to start it again as ranks.
+std::vector<std::string>& program_arguments();
+
 // Options most subcommands share.
 void add_threads_option(CLI::App& sub, int& threads);
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets);

@@ -1,5 +1,6 @@
 // bsms: entry point. Sets up the runtime (OpenMP wait policy, threads), dispatches subcommands and
-// turns errors into one clear line: InputError -> exit 2, NumericalError -> exit 3.
+// turns errors into one clear line: InputError -> exit 2, NumericalError -> exit 3, IoError -> 4,
+// DistributedError (a lost rank) -> 5.
 #include <unistd.h>
 
 #include <algorithm>
@@ -18,6 +19,11 @@ namespace bsms::cli {
 std::vector<Command>& command_registry() {
   static std::vector<Command> registry;
   return registry;
+}
+
+std::vector<std::string>& program_arguments() {
+  static std::vector<std::string> args;
+  return args;
 }
 
 void add_threads_option(CLI::App& sub, int& threads) {
@@ -70,6 +76,7 @@ RemoveOnFailure::~RemoveOnFailure() {
 int main(int argc, char** argv) {
   bsms::ensure_omp_wait_policy(argv);  // libgomp's wait policy (core/runtime.hpp)
   bsms::tune_allocator();
+  bsms::cli::program_arguments().assign(argv, argv + argc);
 
   CLI::App app{
       "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
@@ -103,6 +110,11 @@ int main(int argc, char** argv) {
   } catch (const bsms::IoError& e) {
     std::cerr << "bsms: I/O error: " << e.what() << "\n";
     return 4;
+  } catch (const bsms::SilentExit& e) {
+    return e.code;
+  } catch (const bsms::DistributedError& e) {
+    std::cerr << "bsms: distributed training stopped: " << e.what() << "\n";
+    return 5;
   } catch (const std::exception& e) {
     std::cerr << "bsms: internal error: " << e.what() << "\n";
     return 1;

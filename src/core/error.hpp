@@ -1,5 +1,5 @@
 // Typed errors with context. The CLI maps InputError to one line on stderr and exit code 2,
-// NumericalError (a solver step that failed) to exit code 3.
+// NumericalError (a solver step that failed) to exit code 3, IoError to 4, DistributedError to 5.
 #pragma once
 
 #include <stdexcept>
@@ -25,6 +25,21 @@ class NumericalError : public std::runtime_error {
 class IoError : public std::runtime_error {
  public:
   explicit IoError(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Distributed training lost a rank: one that died, hung past the timeout or closed its connection.
+// The message names this rank, the step and what was lost; the last checkpoint stays intact.
+class DistributedError : public std::runtime_error {
+ public:
+  explicit DistributedError(const std::string& what) : std::runtime_error(what) {}
+};
+
+// Exit with `code` without a message: the cause was already reported in one line by another
+// process (a rank of the same distributed run).
+class SilentExit : public std::runtime_error {
+ public:
+  explicit SilentExit(int code) : std::runtime_error("exit " + std::to_string(code)), code(code) {}
+  int code;
 };
 
 }  // namespace bsms

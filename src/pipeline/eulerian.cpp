@@ -74,17 +74,22 @@ bool is_eulerian_predicted_node(int32_t node_type) {
 
 Batch EulerianAdapter::make_batch(const std::vector<EulerianFrame>& frames,
                                   const std::vector<double>& noise_std,
-                                  at::Generator* generator) const {
+                                  const std::vector<at::Generator*>& generators) const {
   const int width = spec_.state_size();
   if (!noise_std.empty() && static_cast<int>(noise_std.size()) != width)
     throw std::logic_error("EulerianAdapter: one noise scale per state component expected");
+  if (generators.size() > 1 && generators.size() != frames.size())
+    throw std::logic_error("EulerianAdapter: one noise generator per frame, or one for all");
   Batch b;
   std::vector<torch::Tensor> inputs, mesh_pos, masks, states, noises;
   std::vector<const GraphHierarchy*> graphs;
   const auto scale = noise_std.empty()
                          ? torch::Tensor()
                          : torch::tensor(std::vector<float>(noise_std.begin(), noise_std.end()));
-  for (const EulerianFrame& f : frames) {
+  for (size_t k = 0; k < frames.size(); ++k) {
+    const EulerianFrame& f = frames[k];
+    at::Generator* generator =
+        generators.empty() ? nullptr : generators[generators.size() == 1 ? 0 : k];
     const TrajectoryMesh& mesh = *f.mesh;
     const int64_t n = mesh.num_nodes();
     if (f.state.size(0) != n || f.state.size(1) != width)

@@ -58,11 +58,11 @@ class EulerianAdapter {
 
   // Batch.inputs = [state, one-hot], Batch.positions = {X / position_scale}, Batch.cur = the
   // state, Batch.mask = predicted nodes. With `noise_std` (one standard deviation per state
-  // component) Gaussian noise from `generator` is added to the state of predicted nodes and kept
-  // in Batch.noise.
+  // component) Gaussian noise is added to the state of predicted nodes and kept in Batch.noise,
+  // drawn from `generators`: one per frame, or one for all frames.
   Batch make_batch(const std::vector<EulerianFrame>& frames,
                    const std::vector<double>& noise_std = {},
-                   at::Generator* generator = nullptr) const;
+                   const std::vector<at::Generator*>& generators = {}) const;
   // [state change, pressure] targets for the batch from the next state [N, state_size] and the
   // next pressure [N, 1] (undefined without pressure). With noise n on the input, the target
   // change is next + (1 - gamma) n - (state + n): gamma 1 undoes the noise (MeshGraphNets).

@@ -35,18 +35,26 @@ FitResult fit(torch::optim::Adam& optimizer, const FitOptions& o, const FitHooks
   r.step = o.first_step;
   const int64_t stop = o.stop_step > 0 ? std::min(o.stop_step, o.steps) : o.steps;
   auto wall = [&] { return o.wall_before + clock.seconds(); };
+  const bool synchronized = static_cast<bool>(hooks.synchronize);
+  double agreed_wall = o.wall_before;  // synchronized: the last wall time all ranks agreed on
+  auto schedule_wall = [&] { return synchronized ? agreed_wall : wall(); };
   while (r.step < stop) {
     // A budget spent before the session's first step (later steps settle it: `last` below).
-    if (by_time && r.step == o.first_step && wall() >= o.time_budget_s) break;
+    if (by_time && r.step == o.first_step && schedule_wall() >= o.time_budget_s) break;
     Stopwatch step_clock;
-    const double lr = learning_rate(o.optimizer, r.step, fit_progress(o, r.step, wall()));
+    const double lr = learning_rate(o.optimizer, r.step, fit_progress(o, r.step, schedule_wall()));
     for (auto& group : optimizer.param_groups())
       static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
     optimizer.zero_grad();
     auto loss = hooks.loss(r.step);
     loss.backward();
-    optimizer.step();
     r.last_loss = loss.item<double>();
+    if (synchronized) {
+      const FitHooks::Agreed agreed = hooks.synchronize(r.step, r.last_loss, wall());
+      r.last_loss = agreed.loss;
+      agreed_wall = agreed.wall_s;
+    }
+    optimizer.step();
     r.last_lr = lr;
     if (!std::isfinite(r.last_loss))
       throw NumericalError(o.label + ": step " + std::to_string(r.step) +
@@ -55,7 +63,7 @@ FitResult fit(torch::optim::Adam& optimizer, const FitOptions& o, const FitHooks
     r.step_ms.push_back(step_clock.milliseconds());
     // Whether this step is the last is settled before after_step, with the wall time it is
     // told, so that it can checkpoint the last step of a time budget like any other.
-    const double now = wall();
+    const double now = schedule_wall();
     const bool last = r.step >= stop || (by_time && now >= o.time_budget_s);
     std::string extra;
     if (hooks.after_step) extra = hooks.after_step(FitStep{r.step, now, r.last_loss, lr, last});

@@ -40,6 +40,16 @@ struct FitHooks {
   std::function<torch::Tensor(int64_t index)> loss;
   // Optional, after each step: validation, checkpoints, logs. Returns extra progress-bar text.
   std::function<std::string(const FitStep&)> after_step;
+  // Optional, data-parallel training: called between backward and the optimizer step with this
+  // process's loss and run wall time; averages the gradients over the ranks and returns the
+  // loss over all of them and a wall time every rank agrees on. With it, the schedule and the
+  // time budget follow that agreed time (the previous step's), so that all ranks take the same
+  // learning rate and stop at the same step.
+  struct Agreed {
+    double loss = 0.0;
+    double wall_s = 0.0;
+  };
+  std::function<Agreed(int64_t index, double loss, double wall_s)> synchronize;
 };
 
 struct FitResult {

@@ -3,6 +3,7 @@
 #include <torch/torch.h>
 
 #include <filesystem>
+#include <sstream>
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
@@ -81,6 +82,12 @@ void LearnedSimulator::accumulate_statistics(const Batch& batch, const torch::Te
   output_norm_->accumulate(target.index({batch.mask}));
 }
 
+std::vector<torch::Tensor> LearnedSimulator::normalizer_sums() {
+  auto sums = input_norm_->sums();
+  for (auto& t : output_norm_->sums()) sums.push_back(t);
+  return sums;
+}
+
 torch::Tensor LearnedSimulator::zero_prediction_loss(const Batch& batch,
                                                      const torch::Tensor& target) const {
   torch::NoGradGuard no_grad;
@@ -116,16 +123,11 @@ void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
   out.commit();
 }
 
-CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                               torch::optim::Optimizer* optimizer) {
-  if (!std::filesystem::exists(path)) throw InputError(path + ": checkpoint not found");
+namespace {
+
+CheckpointInfo read_checkpoint(torch::serialize::InputArchive& archive, const std::string& path,
+                               LearnedSimulator& simulator, torch::optim::Optimizer* optimizer) {
   CheckpointInfo info;
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const c10::Error&) {
-    throw InputError(path + ": not a readable checkpoint (truncated or corrupt)");
-  }
   read_module(simulator, archive, path);  // checks every entry's shape before copying
   try {
     if (optimizer) {
@@ -150,6 +152,33 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
                      what.substr(0, what.find('\n')) + ")");
   }
   return info;
+}
+
+}  // namespace
+
+CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
+                               torch::optim::Optimizer* optimizer) {
+  if (!std::filesystem::exists(path)) throw InputError(path + ": checkpoint not found");
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error&) {
+    throw InputError(path + ": not a readable checkpoint (truncated or corrupt)");
+  }
+  return read_checkpoint(archive, path, simulator, optimizer);
+}
+
+CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
+                                     LearnedSimulator& simulator,
+                                     torch::optim::Optimizer* optimizer) {
+  torch::serialize::InputArchive archive;
+  try {
+    std::istringstream in(bytes);
+    archive.load_from(in);
+  } catch (const c10::Error&) {
+    throw InputError(name + ": not a readable checkpoint (truncated or corrupt)");
+  }
+  return read_checkpoint(archive, name, simulator, optimizer);
 }
 
 }  // namespace bsms

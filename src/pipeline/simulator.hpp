@@ -50,6 +50,9 @@ class LearnedSimulator : public torch::nn::Module {
   // momentum-conserving on its free groups.
   torch::Tensor predict(const Batch& batch);
 
+  // Both normalizers' sums (Normalizer::sums), to be added up over data-parallel ranks.
+  std::vector<torch::Tensor> normalizer_sums();
+
   GraphModel& model() { return *model_; }
   int64_t num_parameters() const;
 
@@ -74,5 +77,9 @@ void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
                      torch::optim::Optimizer& optimizer, const CheckpointInfo& info);
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
                                torch::optim::Optimizer* optimizer);
+// The same from a checkpoint file's bytes (data-parallel ranks get rank 0's); `name` for errors.
+CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
+                                     LearnedSimulator& simulator,
+                                     torch::optim::Optimizer* optimizer);
 
 }  // namespace bsms

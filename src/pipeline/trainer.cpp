@@ -8,10 +8,13 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <iterator>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -51,12 +54,20 @@ struct SampleRef {
 };
 
 // Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
+// Data-parallel rank r of N draws slots r*b .. r*b+b-1 of the N*b of a step, so that N ranks of
+// batch size b train on the samples (and noise: noise_seed) of one rank of batch size N*b.
 SampleRef draw_sample(const Dataset& data, uint64_t seed, int64_t step, int slot) {
   const uint64_t h = splitmix64(seed * 0x100000001b3ull ^ splitmix64(step * 4096 + slot));
   const int64_t t = static_cast<int64_t>(h % static_cast<uint64_t>(data.num_trajectories()));
   const int64_t frames = data.num_frames(t);
   const int64_t f = 1 + static_cast<int64_t>(splitmix64(h) % static_cast<uint64_t>(frames - 2));
   return {t, f};
+}
+
+// The training noise of slot `slot` of step `step`: one generator per sample.
+uint64_t noise_seed(uint64_t seed, int64_t step, int slot) {
+  return splitmix64(splitmix64(seed ^ (0x1234567ull + static_cast<uint64_t>(step))) ^
+                    static_cast<uint64_t>(slot));
 }
 
 std::string position_field(const Dataset& data) {
@@ -248,12 +259,15 @@ struct TrainBatch {
   torch::Tensor target;
 };
 
-// The adapter-specific part of training: samples of a dataset -> a batch and its target. Noise
-// is drawn from `generator` (none without it), slot by slot in the order of `refs`.
+// The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
+// of refs[k] is drawn from generators[k] (no noise without generators).
 TrainBatch make_train_batch(const Resolved& r, const TrainConfig& config, const Dataset& data,
                             GraphStore& store, const std::vector<SampleRef>& refs,
-                            at::Generator* generator) {
+                            std::vector<at::Generator>* generators) {
   TrainBatch b;
+  const bool noisy = generators != nullptr;
+  if (noisy && generators->size() != refs.size())
+    throw std::logic_error("make_train_batch: one generator per sample expected");
   if (r.eulerian) {
     const EulerianAdapter adapter(r.eulerian_spec);
     std::vector<EulerianFrame> frames;
@@ -268,30 +282,32 @@ TrainBatch make_train_batch(const Resolved& r, const TrainConfig& config, const 
             read_eulerian_pressure(data, r.eulerian_spec, ref.trajectory, ref.frame + 1, 1)[0]);
     }
     std::vector<double> noise;
-    if (generator) {
+    std::vector<at::Generator*> per_frame;
+    if (noisy) {
       noise.assign(r.eulerian_spec.dim, config.features.noise_std);
       if (r.eulerian_spec.density) noise.push_back(config.features.density_noise_std);
+      for (auto& g : *generators) per_frame.push_back(&g);
     }
-    b.batch = adapter.make_batch(frames, noise, generator);
+    b.batch = adapter.make_batch(frames, noise, per_frame);
     b.target = adapter.target(b.batch, torch::cat(nexts, 0),
                               pressures.empty() ? torch::Tensor() : torch::cat(pressures, 0),
-                              generator ? config.features.noise_gamma : 1.0);
+                              noisy ? config.features.noise_gamma : 1.0);
     return b;
   }
   const LagrangianAdapter adapter(r.spec);
   std::vector<FrameState> states;
   std::vector<torch::Tensor> nexts, noise;
-  for (const SampleRef& ref : refs) {
-    LoadedSample s = load_sample(data, store, ref);
+  for (size_t k = 0; k < refs.size(); ++k) {
+    LoadedSample s = load_sample(data, store, refs[k]);
     states.push_back(s.state);
     nexts.push_back(s.next);
-    if (generator)
-      noise.push_back(torch::randn(s.state.cur.sizes(), *generator, torch::kFloat32) *
+    if (noisy)
+      noise.push_back(torch::randn(s.state.cur.sizes(), (*generators)[k], torch::kFloat32) *
                       config.features.noise_std);
   }
   b.batch = adapter.make_batch(states, noise);
   b.target =
-      adapter.target(b.batch, torch::cat(nexts, 0), generator ? config.features.noise_gamma : 1.0);
+      adapter.target(b.batch, torch::cat(nexts, 0), noisy ? config.features.noise_gamma : 1.0);
   return b;
 }
 
@@ -357,65 +373,143 @@ void remove_stale_temporaries(const fs::path& dir) {
 
 }  // namespace
 
-TrainResult train(const TrainRequest& request) {
+namespace {
+
+TrainConfig load_train_config(const TrainRequest& request) {
   Json raw = load_json_file(request.config_path);
   for (const auto& set : request.overrides) apply_override(raw, set, "--set " + set);
-  TrainConfig config = parse_train_config(raw, request.config_path);
-  const int threads = configure_threads(set_num_threads(request.threads));
+  return parse_train_config(raw, request.config_path);
+}
+
+// Threads of this process: --threads, or with 0 the hardware's shared among the local ranks.
+int requested_threads(const TrainRequest& request) {
+  if (request.threads > 0 || !request.distributed.enabled()) return request.threads;
+  const char* local = std::getenv("LOCAL_WORLD_SIZE");
+  const int ranks = local ? std::max(1, std::atoi(local)) : 1;
+  return std::max(1, hardware_threads() / ranks);
+}
+
+// What rank 0 tells the others once it has checked the run folder: "ok" and, on --resume, the
+// checkpoint's bytes; or the exit code of its error (the others exit with it, silently).
+std::string encode_verdict(int code, const std::string& payload) {
+  return std::to_string(code) + "\n" + payload;
+}
+
+}  // namespace
+
+void check_train_request(const TrainRequest& request) {
+  const TrainConfig config = load_train_config(request);
+  const Dataset train_data = Dataset::open_split(config.data, "train");
+  if (Dataset::has_split(config.data, "valid")) Dataset::open_split(config.data, "valid");
+}
+
+TrainResult train(const TrainRequest& request) {
+  TrainConfig config = load_train_config(request);
+  const int threads = configure_threads(set_num_threads(requested_threads(request)));
   torch::manual_seed(config.seed);
+  const DistributedSettings& dist = request.distributed;
+  if (dist.enabled() && static_cast<int64_t>(dist.world) * config.optimizer.batch_size > 4096)
+    throw InputError("WORLD_SIZE=" + std::to_string(dist.world) +
+                     " x optimizer.batch_size=" + std::to_string(config.optimizer.batch_size) +
+                     ": at most 4096 samples per step in all");
 
   TrainResult result;
   result.run_dir = request.out.empty()
                        ? (fs::path("runs") / fs::path(request.config_path).stem()).string()
                        : request.out;
   const std::string run = result.run_dir;
-  // First thing: sessions killed while writing may have left temporary files.
+  // First thing: sessions killed while writing may have left temporary files (those of live
+  // processes, e.g. other ranks, are kept).
   for (const fs::path& dir : {fs::path(run), fs::path(run) / "checkpoints",
                               fs::path(run) / "multilevel", fs::path(config.data) / "multilevel"})
     remove_stale_temporaries(dir);
   const Dataset train_data = Dataset::open_split(config.data, "train");
   // A missing valid split validates on training data and says so; a broken one is an error.
   const bool has_valid = Dataset::has_split(config.data, "valid");
-  if (!has_valid)
-    std::cerr << "bsms train: warning: " << config.data
-              << " has no valid split; valid_loss is measured on training frames\n";
   const Dataset valid_data = Dataset::open_split(config.data, has_valid ? "valid" : "train");
   const Resolved resolved = resolve(config, train_data);
-  std::error_code ec;
-  fs::create_directories(fs::path(run) / "checkpoints", ec);
-  if (ec) throw InputError(run + ": cannot create the run folder (" + ec.message() + ")");
+
+  // Data parallelism: every rank has checked its config and data; now they meet.
+  std::unique_ptr<Communicator> comm;
+  if (dist.enabled()) comm = std::make_unique<Communicator>(dist);
+  const int rank = comm ? comm->rank() : 0;
+  const int world = comm ? comm->world() : 1;
+  const bool writer = rank == 0;  // rank 0 alone writes the run folder
+  const bool quiet = request.quiet || !writer;
+  if (!has_valid && writer)
+    std::cerr << "bsms train: warning: " << config.data
+              << " has no valid split; valid_loss is measured on training frames\n";
 
   const std::string checkpoint = run_checkpoint_path(run);
-  if (!request.resume && fs::exists(checkpoint))
-    throw InputError(run +
-                     ": run folder already holds a checkpoint; pass --resume to continue it "
-                     "or --out for a new run");
-  if (request.resume && !fs::exists(checkpoint))
-    throw InputError(checkpoint +
-                     ": nothing to resume (no checkpoint in this run folder; a session stopped "
-                     "before its first checkpoint is started again without --resume)");
-
   const Json run_json = {{"config", to_json(config)},
                          {"features_resolved", resolved.spec_json()},
                          {"levels", resolved.levels},
+                         {"world_size", world},
                          {"config_file", request.config_path}};
-  if (request.resume) {
-    const Json saved = load_json_file(run_config_path(run));
-    Json a = saved.value("config", Json::object()), b = run_json["config"];
-    for (auto* j : {&a, &b}) {
-      j->erase("steps");
-      j->erase("time_budget_s");
+  // Rank 0 checks and prepares the run folder; with --resume it reads the checkpoint, which the
+  // other ranks (perhaps on machines without the folder) receive from it.
+  std::string checkpoint_bytes;
+  if (writer) {
+    try {
+      std::error_code ec;
+      fs::create_directories(fs::path(run) / "checkpoints", ec);
+      if (ec) throw InputError(run + ": cannot create the run folder (" + ec.message() + ")");
+      if (!request.resume && fs::exists(checkpoint))
+        throw InputError(run +
+                         ": run folder already holds a checkpoint; pass --resume to continue it "
+                         "or --out for a new run");
+      if (request.resume && !fs::exists(checkpoint))
+        throw InputError(checkpoint +
+                         ": nothing to resume (no checkpoint in this run folder; a session "
+                         "stopped before its first checkpoint is started again without --resume)");
+      if (request.resume) {
+        const Json saved = load_json_file(run_config_path(run));
+        Json a = saved.value("config", Json::object()), b = run_json["config"];
+        for (auto* j : {&a, &b}) {
+          j->erase("steps");
+          j->erase("time_budget_s");
+        }
+        if (a != b || saved.value("levels", -1) != resolved.levels)
+          throw InputError(run_config_path(run) +
+                           ": the run was trained with another configuration; "
+                           "only steps and time_budget_s may change on --resume");
+        const int before = saved.value("world_size", 1);
+        if (before != world)
+          std::cerr << "bsms train: warning: " << run << " was trained with " << before
+                    << " rank(s) of batch size " << config.optimizer.batch_size
+                    << "; continuing with " << world
+                    << ": the sample sequence changed (training goes on correctly, with "
+                    << world * config.optimizer.batch_size << " samples per step instead of "
+                    << before * config.optimizer.batch_size << ")\n";
+        if (comm) {
+          std::ifstream in(checkpoint, std::ios::binary);
+          checkpoint_bytes.assign(std::istreambuf_iterator<char>(in), {});
+          if (!in.good() && !in.eof()) throw InputError(checkpoint + ": cannot read");
+        }
+      }
+      write_json_atomic(run_config_path(run), run_json);
+    } catch (const InputError& e) {
+      if (comm) comm->share("start", encode_verdict(2, e.what()));
+      throw;
+    } catch (const IoError& e) {
+      if (comm) comm->share("start", encode_verdict(4, e.what()));
+      throw;
     }
-    if (a != b || saved.value("levels", -1) != resolved.levels)
-      throw InputError(run_config_path(run) +
-                       ": the run was trained with another configuration; "
-                       "only steps and time_budget_s may change on --resume");
+    if (comm) comm->share("start", encode_verdict(0, checkpoint_bytes));
+  } else {
+    const std::string verdict = comm->share("start", {});
+    const size_t newline = verdict.find('\n');
+    const int code = std::atoi(verdict.substr(0, newline).c_str());
+    if (code != 0) throw SilentExit(code);  // rank 0 reported it
+    checkpoint_bytes = verdict.substr(newline + 1);
   }
-  write_json_atomic(run_config_path(run), run_json);
 
   std::vector<std::string> cache_dirs = {(fs::path(config.data) / "multilevel").string(),
                                          (fs::path(run) / "multilevel").string()};
-  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
+  for (const auto& d : cache_dirs) {
+    std::error_code ec;
+    fs::create_directories(d, ec);
+  }
   GraphStore store(parse_seeding(config.model.seeding), resolved.levels, cache_dirs);
   auto simulator =
       std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
@@ -426,11 +520,13 @@ TrainResult train(const TrainRequest& request) {
   double wall_before = 0.0;
   CheckpointInfo resumed;  // the losses at the checkpoint: reported if no step is trained
   if (request.resume) {
-    resumed = load_checkpoint(checkpoint, *simulator, &optimizer);
+    resumed = comm ? load_checkpoint_bytes(checkpoint_bytes, checkpoint, *simulator, &optimizer)
+                   : load_checkpoint(checkpoint, *simulator, &optimizer);
     step = resumed.step;
     wall_before = resumed.wall_s;
   }
-  std::ofstream log = open_log(run_log_path(run), step, !request.resume);
+  std::ofstream log;
+  if (writer) log = open_log(run_log_path(run), step, !request.resume);
 
   // Fixed validation samples: the same every time, no noise.
   std::vector<SampleRef> valid_refs;
@@ -466,25 +562,37 @@ TrainResult train(const TrainRequest& request) {
     const double n = static_cast<double>(valid_refs.size());
     return Validation{total / n, zero / n};
   };
-  // One training batch: deterministic in (seed, step), noise included.
+  // One training batch: deterministic in (seed, step), noise included; this rank's slots.
+  const int per_rank = config.optimizer.batch_size;
+  double batch_weight = 0.0;  // predicted nodes of the last batch: the weight of its loss
   auto training_batch = [&](int64_t index) {
     std::vector<SampleRef> refs;
-    for (int slot = 0; slot < config.optimizer.batch_size; ++slot)
+    std::vector<at::Generator> generators;
+    for (int k = 0; k < per_rank; ++k) {
+      const int slot = rank * per_rank + k;
       refs.push_back(draw_sample(train_data, config.seed, index, slot));
-    auto generator =
-        at::detail::createCPUGenerator(splitmix64(config.seed ^ (0x1234567ull + index)));
-    return make_train_batch(resolved, config, train_data, store, refs, &generator);
+      generators.push_back(at::detail::createCPUGenerator(noise_seed(config.seed, index, slot)));
+    }
+    TrainBatch b = make_train_batch(resolved, config, train_data, store, refs, &generators);
+    batch_weight = b.batch.mask.sum().item<double>();
+    return b;
   };
   // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
-  // drawn apart from the training steps'). A resumed run has them in its checkpoint.
+  // drawn apart from the training steps'), summed over the ranks. A resumed run has them in its
+  // checkpoint; a fresh one starts every rank from rank 0's parameters.
   if (!request.resume) {
     for (int64_t i = 0; i < config.normalizer_steps; ++i) {
       const TrainBatch b = training_batch(-2 - i);
       simulator->accumulate_statistics(b.batch, b.target);
     }
+    if (comm) {
+      comm->broadcast(simulator->parameters(), 0, "broadcast of the initial parameters");
+      comm->all_reduce_sum(simulator->normalizer_sums(), 0,
+                           "all-reduce of the normalizer statistics");
+    }
   }
 
-  if (!request.quiet)
+  if (!quiet)
     std::cerr << "bsms train: " << config.model.type << (resolved.eulerian ? " (Eulerian)" : "")
               << ", " << resolved.levels << " level(s), " << simulator->num_parameters()
               << " parameters, " << train_data.num_trajectories()
@@ -499,7 +607,11 @@ TrainResult train(const TrainRequest& request) {
                       : "not conserved" + (resolved.momentum_note.empty()
                                                ? std::string()
                                                : " (" + resolved.momentum_note + ")"))
-              << ", " << threads << " thread(s) -> " << run << "\n";
+              << ", " << threads << " thread(s)"
+              << (comm ? " x " + std::to_string(world) + " ranks (" +
+                             std::to_string(world * per_rank) + " samples per step)"
+                       : std::string())
+              << " -> " << run << "\n";
 
   FitOptions fit_options;
   fit_options.optimizer = config.optimizer;
@@ -508,16 +620,42 @@ TrainResult train(const TrainRequest& request) {
   fit_options.first_step = step;
   fit_options.wall_before = wall_before;
   fit_options.stop_step = request.until;
-  fit_options.quiet = request.quiet;
+  fit_options.quiet = quiet;
   Validation last_valid{resumed.valid_loss, resumed.valid_baseline};
   FitHooks hooks;
   hooks.loss = [&](int64_t index) {
     const TrainBatch b = training_batch(index);
     return simulator->loss(b.batch, b.target);
   };
+  if (comm) {
+    // The loss is a mean over predicted nodes: weighting each rank's gradient by its node count
+    // gives the gradient of the mean over all ranks' nodes, as one rank with all samples would.
+    // One bucketed all-reduce carries the gradients, the weights, the losses and rank 0's clock.
+    const auto parameters = simulator->parameters();
+    hooks.synchronize = [&, parameters](int64_t index, double loss, double wall_s) {
+      std::vector<torch::Tensor> tensors;
+      auto scalars = torch::tensor({batch_weight, batch_weight * loss, writer ? wall_s : 0.0},
+                                   torch::kFloat64);
+      tensors.push_back(scalars);
+      for (const auto& p : parameters) {
+        auto& g = p.mutable_grad();
+        if (!g.defined()) g = torch::zeros_like(p);
+        g.mul_(batch_weight);
+        tensors.push_back(g);
+      }
+      comm->all_reduce_sum(tensors, index, "all-reduce of the gradients");
+      const double total = scalars[0].item<double>();
+      if (!(total > 0))
+        throw InputError("step " + std::to_string(index) +
+                         ": no rank's batch has a predicted node (check the data's node types)");
+      for (size_t i = 1; i < tensors.size(); ++i) tensors[i].div_(total);
+      return FitHooks::Agreed{scalars[1].item<double>() / total, scalars[2].item<double>()};
+    };
+  }
   // Validation and an atomic checkpoint every valid_every steps and at the last step; one log
-  // row per step (validation columns empty between checks).
+  // row per step (validation columns empty between checks). Rank 0 only.
   hooks.after_step = [&](const FitStep& s) {
+    if (!writer) return std::string();
     const bool checkpoint_now = s.step % config.valid_every == 0 || s.last;
     if (checkpoint_now) {
       last_valid = validate();
@@ -534,22 +672,28 @@ TrainResult train(const TrainRequest& request) {
     return extra.str();
   };
   simulator->train();
+  const int64_t collective_calls_before = comm ? comm->collective_calls : 0;
+  const double collective_ms_before = comm ? comm->collective_ms : 0.0;
   const FitResult fitted = fit(optimizer, fit_options, hooks);
   step = fitted.step;
   // The last step of the session was checkpointed (a time budget's too: FitStep::last); without
   // a step the losses are the checkpoint's.
   const double last_loss = step > fit_options.first_step ? fitted.last_loss : resumed.loss;
-  log.close();
-
   result.steps = step;
   result.final_loss = last_loss;
   result.final_valid_loss = last_valid.loss;
   result.train_ms_per_step = fitted.median_step_ms();
+  if (!writer) return result;
+  log.close();
+
+  const double session_steps = static_cast<double>(fitted.step_ms.size());
   Json stats = {
       {"steps", step},
       {"train_ms_per_step", result.train_ms_per_step},
       {"peak_rss_mb_train", peak_rss_mb()},
       {"threads", threads},
+      {"world_size", world},
+      {"samples_per_step", world * per_rank},
       {"wall_s", fitted.wall_s},
       {"final_loss", last_loss},
       {"final_valid_loss", std::isfinite(last_valid.loss) ? Json(last_valid.loss) : Json(nullptr)},
@@ -557,6 +701,12 @@ TrainResult train(const TrainRequest& request) {
        std::isfinite(last_valid.baseline) ? Json(last_valid.baseline) : Json(nullptr)},
       {"num_parameters", simulator->num_parameters()},
       {"valid_split", has_valid ? "valid" : "train"}};
+  if (comm && session_steps > 0) {
+    // Rank 0's time in the gradient all-reduce (waiting for slower ranks included).
+    stats["allreduce_ms_per_step"] = (comm->collective_ms - collective_ms_before) / session_steps;
+    stats["allreduce_calls_per_step"] =
+        static_cast<double>(comm->collective_calls - collective_calls_before) / session_steps;
+  }
   if (request.resume && fs::exists(run_stats_path(run))) {
     // Keep the median of the first session when this one ran no step.
     const Json old = load_json_file(run_stats_path(run));

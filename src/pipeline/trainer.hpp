@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/distributed.hpp"
 #include "pipeline/train_config.hpp"
 
 namespace bsms {
@@ -16,6 +17,8 @@ struct TrainRequest {
   int64_t until = 0;  // > 0: stop (with a checkpoint) at this step; resumable
   int threads = 0;
   bool quiet = false;  // no progress bar (tests)
+  // Data-parallel rank of this process (world 1: alone). Rank 0 writes the run folder.
+  DistributedSettings distributed;
 };
 
 struct TrainResult {
@@ -27,6 +30,10 @@ struct TrainResult {
 };
 
 TrainResult train(const TrainRequest& request);
+
+// The checks `train` makes on the config, the overrides and the training data before any work,
+// for a launcher to report bad input once instead of once per rank.
+void check_train_request(const TrainRequest& request);
 
 // Files of a run folder (DESIGN.md "Runs").
 std::string run_config_path(const std::string& run);

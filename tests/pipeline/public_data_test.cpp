@@ -187,7 +187,7 @@ TEST(EulerianAdapter, TargetAndIntegrateAreInverse) {
              pressure = torch::randn({4, 1});
   auto generator = at::detail::createCPUGenerator(7);
   const Batch batch =
-      adapter.make_batch({EulerianFrame{&graphs, &mesh, state}}, {0.1, 0.1, 0.01}, &generator);
+      adapter.make_batch({EulerianFrame{&graphs, &mesh, state}}, {0.1, 0.1, 0.01}, {&generator});
   ASSERT_EQ(batch.inputs.size(1), spec.input_size());
   EXPECT_TRUE(batch.mask.equal(torch::tensor({true, false, true, false})));
   // Noise only on solved nodes.
