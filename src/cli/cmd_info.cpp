@@ -42,7 +42,7 @@ void info_dataset(const std::string& path) {
   for (const auto& f : d.fields()) std::cout << ' ' << f.name << '[' << f.width << ']';
   std::cout << "\n  node types:";
   for (const auto& [type, count] : types) std::cout << ' ' << type << ':' << count;
-  std::cout << '\n';
+  std::cout << '\n' << std::defaultfloat << std::setprecision(6);  // for the next summary
 }
 
 // A MeshGraphNets folder (meta.json + {split}.tfrecord): the schema, record counts and the first
@@ -264,6 +264,15 @@ void info(const std::string& path) {
   if (fs::is_directory(path)) {
     if (fs::exists(fs::path(path) / "config.json")) return info_run(path);
     if (fs::exists(fs::path(path) / "meta.json")) return info_meshgraphnets(path);
+    // A bsms dataset folder (bsms generate): each split file.
+    bool splits = false;
+    for (const char* split : {"train", "valid", "test"}) {
+      const fs::path file = fs::path(path) / (std::string(split) + ".h5");
+      if (!fs::is_regular_file(file)) continue;
+      info(file.string());
+      splits = true;
+    }
+    if (splits) return;
     return info_dataset(path);  // public layout folder
   }
   if (fs::path(path).extension() == ".pt") {
