@@ -50,8 +50,8 @@ bench: build
 # timeout or out-of-memory leaves its input in $(RUNS)/fuzz-crashes/<target>/ and makes
 # `make fuzz` fail once every target has run (UBSan reports included). Each target runs
 # FUZZ_SECONDS, or its own FUZZ_SECONDS_<target>, sized to reach about 1M inputs (rates seen on a
-# loaded 2-core machine: mesh ~13k/s, config ~3.4k/s, tfrecord ~3.1k/s, multilevel ~0.4k/s and
-# dataset ~0.4k/s, as these two write and read HDF5 files per input). FUZZ_SECONDS=N on the
+# loaded 2-core machine: mesh ~13k/s, config ~3.4k/s, tfrecord ~3.1k/s, multilevel ~0.4-1.2k/s and
+# dataset ~0.4-0.95k/s, as these two write and read HDF5 files per input). FUZZ_SECONDS=N on the
 # command line sets every target's time. build-fuzz/fuzz/fuzz_gmsh_mesh (extract_mesh through a
 # gmsh model) is built but not run here: libgmsh 4.8 itself crashes after a few thousand models
 # in one process (fuzz/fuzz_mesh.cpp).

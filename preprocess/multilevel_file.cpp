@@ -125,6 +125,11 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
       const GraphLevel& fine = out.levels.back();
       level.pooled =
           file.read<int64_t>(group + "/pooled", nullptr, {static_cast<hsize_t>(num_nodes)});
+      // (A 0 in the expected shape accepts any length: check the count itself.)
+      if (static_cast<int64_t>(level.pooled.size()) != num_nodes)
+        throw InputError(path + ": " + group + "/pooled has " +
+                         std::to_string(level.pooled.size()) + " entries, expected num_nodes = " +
+                         std::to_string(num_nodes));
       for (size_t r = 0; r < level.pooled.size(); ++r) {
         const int64_t v = level.pooled[r];
         if (v < 0 || v >= fine.num_nodes() || (r > 0 && v <= level.pooled[r - 1])) {
@@ -138,6 +143,11 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
       const GraphLevel& fine = out.levels.back();
       level.down_weight = file.read<float>(group + "/down_weight", nullptr,
                                            {static_cast<hsize_t>(fine.graph.num_edges())});
+      if (static_cast<int64_t>(level.down_weight.size()) != fine.graph.num_edges())
+        throw InputError(path + ": " + group + "/down_weight has " +
+                         std::to_string(level.down_weight.size()) +
+                         " entries, expected one per edge of level " + std::to_string(k - 1) +
+                         " (" + std::to_string(fine.graph.num_edges()) + ")");
       for (size_t e = 0; e < level.down_weight.size(); ++e) {
         if (!std::isfinite(level.down_weight[e]) || level.down_weight[e] < 0.0f) {
           throw InputError(path + ": " + group + "/down_weight: entry " + std::to_string(e) +

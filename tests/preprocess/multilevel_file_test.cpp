@@ -249,5 +249,42 @@ TEST(MultilevelFile, FuzzHugeNumNodesIsAnInputError) {
                   "/level_1/pooled");
 }
 
+// Found by fuzz_multilevel: a 0 in the reader's expected shape accepts any length, so a level
+// without edges let a down_weight (or pooled) array of any length through.
+TEST(MultilevelFile, FuzzLengthsAreCheckedWhenALevelHasNoEdges) {
+  auto write = [](const std::string& path, int64_t coarse_nodes, std::vector<int64_t> pooled,
+                  std::vector<float> weights) {
+    H5File f(path, H5File::Mode::kTruncate);
+    f.set_attr("/", "format", std::string("bsms-multilevel"));
+    f.set_attr("/", "version", int64_t{1});
+    f.set_attr("/", "seeding", std::string("minave"));
+    f.set_attr("/", "num_levels", int64_t{2});
+    f.create_group("/level_0");
+    f.set_attr("/level_0", "num_nodes", int64_t{3});
+    f.write("/level_0/edges", std::vector<int64_t>{}, {0, 2});
+    f.create_group("/level_1");
+    f.set_attr("/level_1", "num_nodes", coarse_nodes);
+    f.write("/level_1/edges", std::vector<int64_t>{}, {0, 2});
+    f.write("/level_1/pooled", pooled, {static_cast<hsize_t>(pooled.size())});
+    f.write("/level_1/down_weight", weights, {static_cast<hsize_t>(weights.size())});
+  };
+  TempDir dir;
+  const std::string good = dir.file("good.h5"), weights = dir.file("weights.h5"),
+                    pooled = dir.file("pooled.h5");
+  write(good, 1, {0}, {});
+  EXPECT_EQ(read_multilevel_graph(good).levels[1].num_nodes(), 1);
+  write(weights, 1, {0}, {1.0f, 1.0f, 1.0f});
+  write(pooled, 0, {0}, {});
+  for (const auto& [path, key] : {std::pair{weights, std::string("/level_1/down_weight has 3")},
+                                  std::pair{pooled, std::string("/level_1/pooled has 1")}}) {
+    try {
+      read_multilevel_graph(path);
+      ADD_FAILURE() << "accepted " << key;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace bsms
