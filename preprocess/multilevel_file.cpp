@@ -128,8 +128,8 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
       // (A 0 in the expected shape accepts any length: check the count itself.)
       if (static_cast<int64_t>(level.pooled.size()) != num_nodes)
         throw InputError(path + ": " + group + "/pooled has " +
-                         std::to_string(level.pooled.size()) + " entries, expected num_nodes = " +
-                         std::to_string(num_nodes));
+                         std::to_string(level.pooled.size()) +
+                         " entries, expected num_nodes = " + std::to_string(num_nodes));
       for (size_t r = 0; r < level.pooled.size(); ++r) {
         const int64_t v = level.pooled[r];
         if (v < 0 || v >= fine.num_nodes() || (r > 0 && v <= level.pooled[r - 1])) {
