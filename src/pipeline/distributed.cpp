@@ -216,10 +216,6 @@ std::string describe_failure(const DistributedSettings& s, const std::vector<std
   return m.str();
 }
 
-}  // namespace
-
-namespace {
-
 // Tensors grouped into buckets: same dtype, at most `bytes` each (a larger tensor alone).
 std::vector<std::vector<size_t>> make_buckets(const std::vector<torch::Tensor>& tensors,
                                               int64_t bytes) {
@@ -244,8 +240,10 @@ std::vector<std::vector<size_t>> make_buckets(const std::vector<torch::Tensor>& 
 
 }  // namespace
 
-void Communicator::all_reduce_sum(const std::vector<torch::Tensor>& tensors, int64_t step,
-                                  const std::string& what) {
+// Packs `tensors` into buckets, starts an all-reduce (sum) or a broadcast from rank 0 on each,
+// all in flight together, waits, and writes the results back into the tensors.
+void Communicator::bucketed(const std::vector<torch::Tensor>& tensors, int64_t step,
+                            const std::string& what, bool broadcast) {
   Stopwatch clock;
   const auto buckets = make_buckets(tensors, bucket_bytes);
   std::vector<torch::Tensor> flats;
@@ -256,7 +254,13 @@ void Communicator::all_reduce_sum(const std::vector<torch::Tensor>& tensors, int
       for (size_t i : bucket) parts.push_back(tensors[i].detach().reshape({-1}));
       flats.push_back(torch::cat(parts));
       std::vector<torch::Tensor> one{flats.back()};
-      works.push_back(impl_->group->allreduce(one));
+      if (broadcast) {
+        c10d::BroadcastOptions options;
+        options.rootRank = 0;
+        works.push_back(impl_->group->broadcast(one, options));
+      } else {
+        works.push_back(impl_->group->allreduce(one));
+      }
       ++collective_calls;
     }
     for (auto& w : works) w->wait(to_ms(settings_.timeout_s));
@@ -276,38 +280,14 @@ void Communicator::all_reduce_sum(const std::vector<torch::Tensor>& tensors, int
   collective_ms += clock.milliseconds();
 }
 
+void Communicator::all_reduce_sum(const std::vector<torch::Tensor>& tensors, int64_t step,
+                                  const std::string& what) {
+  bucketed(tensors, step, what, /*broadcast=*/false);
+}
+
 void Communicator::broadcast(const std::vector<torch::Tensor>& tensors, int64_t step,
                              const std::string& what) {
-  Stopwatch clock;
-  const auto buckets = make_buckets(tensors, bucket_bytes);
-  std::vector<torch::Tensor> flats;
-  std::vector<c10::intrusive_ptr<c10d::Work>> works;
-  try {
-    for (const auto& bucket : buckets) {
-      std::vector<torch::Tensor> parts;
-      for (size_t i : bucket) parts.push_back(tensors[i].detach().reshape({-1}));
-      flats.push_back(torch::cat(parts));
-      std::vector<torch::Tensor> one{flats.back()};
-      c10d::BroadcastOptions options;
-      options.rootRank = 0;
-      works.push_back(impl_->group->broadcast(one, options));
-      ++collective_calls;
-    }
-    for (auto& w : works) w->wait(to_ms(settings_.timeout_s));
-  } catch (const std::exception& e) {
-    throw DistributedError(
-        describe_failure(settings_, impl_->hosts, impl_->pids, step, what, e.what()));
-  }
-  torch::NoGradGuard no_grad;
-  for (size_t b = 0; b < buckets.size(); ++b) {
-    int64_t offset = 0;
-    for (size_t i : buckets[b]) {
-      const int64_t n = tensors[i].numel();
-      tensors[i].copy_(flats[b].narrow(0, offset, n).view(tensors[i].sizes()));
-      offset += n;
-    }
-  }
-  collective_ms += clock.milliseconds();
+  bucketed(tensors, step, what, /*broadcast=*/true);
 }
 
 std::string Communicator::share(const std::string& key, const std::string& bytes) {

@@ -58,6 +58,9 @@ class Communicator {
   double collective_ms = 0.0;
 
  private:
+  // Both collectives: tensors packed into buckets, one call per bucket, results written back.
+  void bucketed(const std::vector<torch::Tensor>& tensors, int64_t step, const std::string& what,
+                bool broadcast);
   struct Impl;
   DistributedSettings settings_;
   std::unique_ptr<Impl> impl_;

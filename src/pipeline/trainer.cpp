@@ -371,10 +371,6 @@ void remove_stale_temporaries(const fs::path& dir) {
   }
 }
 
-}  // namespace
-
-namespace {
-
 TrainConfig load_train_config(const TrainRequest& request) {
   Json raw = load_json_file(request.config_path);
   for (const auto& set : request.overrides) apply_override(raw, set, "--set " + set);
