@@ -44,29 +44,31 @@ bench: build
 # libFuzzer + ASan + UBSan on every parser bsms owns (fuzz/*.cpp): config JSON with --set
 # overrides as train config, scene and scene family (fuzz_config), the multilevel graph file
 # (fuzz_multilevel) and the HDF5 dataset layouts (fuzz_dataset) through HDF5 structure programs,
-# the mesh intake after gmsh (fuzz_mesh) and the MeshGraphNets TFRecord / meta.json reader
-# (fuzz_tfrecord), one after the other on $(RUNS)/fuzz-corpus/<target>/, seeded from the shipped
-# configs, the fixtures and the targets' built-in seeds; the corpus grows there. A crash, leak,
-# timeout or out-of-memory leaves its input in $(RUNS)/fuzz-crashes/<target>/ and makes
-# `make fuzz` fail once every target has run (UBSan reports included). Each target runs
-# FUZZ_SECONDS, or its own FUZZ_SECONDS_<target>, sized to reach about 1M inputs (rates seen on a
-# loaded 2-core machine: mesh ~13k/s, config ~3.4k/s, tfrecord ~3.1k/s, multilevel ~0.4-1.2k/s and
-# dataset ~0.4-0.95k/s, as these two write and read HDF5 files per input). FUZZ_SECONDS=N on the
-# command line sets every target's time. build-fuzz/fuzz/fuzz_gmsh_mesh (extract_mesh through a
-# gmsh model) is built but not run here: libgmsh 4.8 itself crashes after a few thousand models
-# in one process (fuzz/fuzz_mesh.cpp).
+# the mesh intake after gmsh (fuzz_mesh), the direct MSH 2.2 / 4.1 reader (fuzz_msh) and the
+# MeshGraphNets TFRecord / meta.json reader (fuzz_tfrecord), one after the other on
+# $(RUNS)/fuzz-corpus/<target>/, seeded from the shipped configs, the fixtures and the targets'
+# built-in seeds; the corpus grows there. A crash, leak, timeout or out-of-memory leaves its input
+# in $(RUNS)/fuzz-crashes/<target>/ and makes `make fuzz` fail once every target has run (UBSan
+# reports included). Each target runs FUZZ_SECONDS, or its own FUZZ_SECONDS_<target>, sized to
+# reach about 1M inputs (rates seen on a loaded 2-core machine: msh ~50k/s, mesh ~13k/s, config
+# ~3.4k/s, tfrecord ~3.1k/s, multilevel ~0.4-1.2k/s and dataset ~0.4-0.95k/s, as these two write
+# and read HDF5 files per input). FUZZ_SECONDS=N on the command line sets every target's time.
+# build-fuzz/fuzz/fuzz_gmsh_mesh (extract_mesh through a gmsh model) is built but not run here:
+# libgmsh 4.8 itself crashes after a few thousand models in one process (fuzz/fuzz_mesh.cpp).
 FUZZ_SECONDS ?= 120
-FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_tfrecord
+FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_tfrecord
 ifneq ($(origin FUZZ_SECONDS),command line)
 FUZZ_SECONDS_fuzz_config ?= 360
 FUZZ_SECONDS_fuzz_multilevel ?= 3000
 FUZZ_SECONDS_fuzz_dataset ?= 3000
 FUZZ_SECONDS_fuzz_tfrecord ?= 480
+FUZZ_SECONDS_fuzz_msh ?= 60
 endif
 FUZZ_MAX_LEN_fuzz_config := 8192
 FUZZ_MAX_LEN_fuzz_multilevel := 4096
 FUZZ_MAX_LEN_fuzz_dataset := 4096
 FUZZ_MAX_LEN_fuzz_mesh := 2048
+FUZZ_MAX_LEN_fuzz_msh := 8192
 FUZZ_MAX_LEN_fuzz_tfrecord := 262144
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
@@ -81,7 +83,7 @@ fuzz: deps
 	  > $(FUZZ_CORPUS)/fuzz_config/set_scene.json
 	{ cat configs/scenes/disks2d.json; printf '\0sample.count=[1,3]\0scene.background.min=[0]'; } \
 	  > $(FUZZ_CORPUS)/fuzz_config/set_family.json
-	for t in fuzz_multilevel fuzz_dataset fuzz_mesh; do \
+	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh; do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
 	for d in tests/fixtures/meshgraphnets/*; do n=$$(basename $$d); \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_tfrecord/meta_$$n.json; \

@@ -1,6 +1,7 @@
 // Bi-stride multilevel building: CloseCenter on structured triangulated rectangles from 10K to 1M
 // nodes (22K and 243K match the original Python figures in DESIGN.md: 0.39 s and 6.4 s), reading a
-// 1M-node .msh written by gmsh plus building, and exact MinAve at 50K nodes.
+// 1M-node .msh written by gmsh (alone, through gmsh and directly, and plus building), and exact
+// MinAve at 50K nodes.
 #include <benchmark/benchmark.h>
 #include <gmsh.h>
 #include <omp.h>
@@ -14,6 +15,7 @@
 #include "core/gmsh_session.hpp"
 #include "core/graph.hpp"
 #include "core/mesh.hpp"
+#include "core/msh_reader.hpp"
 #include "preprocess/contact_enhancement.hpp"
 #include "preprocess/multilevel_graph.hpp"
 #include "preprocess/seeding.hpp"
@@ -177,6 +179,26 @@ std::string gmsh_million_node_file() {
   omp_set_num_threads(threads);  // gmsh sets OpenMP to its own thread count
   return path;
 }
+
+// Reading the same 1M-node .msh alone: through the gmsh library (arg 0, read_mesh_with_gmsh)
+// and with the direct reader (arg 1, read_msh, what read_mesh uses for it). Run with
+// --benchmark_enable_random_interleaving=true to alternate the two on a shared machine.
+void BM_ReadMsh(benchmark::State& state) {
+  const std::string path = gmsh_million_node_file();
+  const bool direct = state.range(0) == 1;
+  for (auto _ : state) {
+    const Mesh mesh = direct ? read_msh(path) : read_mesh_with_gmsh(path);
+    benchmark::DoNotOptimize(mesh.points.data());
+  }
+  state.SetLabel(direct ? "direct" : "gmsh");
+}
+BENCHMARK(BM_ReadMsh)
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true)
+    ->Iterations(1);
 
 void BM_ReadMshAndBuild(benchmark::State& state) {
   const std::string path = gmsh_million_node_file();

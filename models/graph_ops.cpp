@@ -540,6 +540,64 @@ struct SparseTransfer : torch::autograd::Function<SparseTransfer> {
   }
 };
 
+// The checked inputs of the tiled inference kernels: rows x [E, K] (edge features or latents),
+// per-node projections a, b [N, C] and the edge MLP's weights w1 [C, K], w2, w3 [C, C], biases [C].
+struct TiledEdgeMlp {
+  torch::Tensor x, a, b, w1, w2, w3, b1, b2, b3;
+  int64_t channels = 0, k = 0, nodes = 0;
+};
+
+TiledEdgeMlp checked_tiled_edge_mlp(const char* kernel, const char* x_name,
+                                    const torch::Tensor& x_in, const torch::Tensor& w1_in,
+                                    const torch::Tensor& b1_in, const torch::Tensor& a_in,
+                                    const torch::Tensor& b_in, const torch::Tensor& w2_in,
+                                    const torch::Tensor& b2_in, const torch::Tensor& w3_in,
+                                    const torch::Tensor& b3_in, const EdgeIndex& edges,
+                                    bool square_first_layer) {
+  const std::string name(kernel);
+  if (torch::GradMode::is_enabled()) {
+    for (const auto* t : {&x_in, &w1_in, &b1_in, &a_in, &b_in, &w2_in, &b2_in, &w3_in, &b3_in}) {
+      if (t->requires_grad())
+        throw InputError("graph kernel: " + name + " is for inference (no gradients)");
+    }
+  }
+  TiledEdgeMlp m;
+  m.x = checked_float(x_in, x_name);
+  m.a = checked_float(a_in, "a");
+  m.b = checked_float(b_in, "b");
+  m.w1 = checked_float(w1_in, "w1");
+  m.w2 = checked_float(w2_in, "w2");
+  m.w3 = checked_float(w3_in, "w3");
+  m.b1 = b1_in.contiguous();
+  m.b2 = b2_in.contiguous();
+  m.b3 = b3_in.contiguous();
+  check_edges(m.x, edges, x_name, true);
+  check_edges(m.a, edges, "a", false);
+  check_edges(m.b, edges, "b", false);
+  const int64_t c = m.a.size(1), k = m.x.size(1);
+  if (m.b.size(1) != c || m.w1.size(0) != c || m.w1.size(1) != k || m.b1.numel() != c ||
+      m.w2.size(0) != c || m.w2.size(1) != c || m.b2.numel() != c || m.w3.size(0) != c ||
+      m.w3.size(1) != c || m.b3.numel() != c || (square_first_layer && k != c)) {
+    throw InputError("graph kernel: " + name + " shape mismatch");
+  }
+  m.channels = c;
+  m.k = k;
+  m.nodes = edges.num_nodes;
+  return m;
+}
+
+// Receiver ranges [bounds[p], bounds[p+1]) holding about equal numbers of edges, one per worker
+// (at most one per `tile` edges), so each worker alone adds to its receivers' output rows.
+std::vector<int64_t> receiver_ranges(const int64_t* off, int64_t nodes, int64_t tile) {
+  const int64_t threads = at::in_parallel_region() ? 1 : at::get_num_threads();
+  const int64_t parts = std::max<int64_t>(1, std::min<int64_t>(threads, off[nodes] / tile));
+  std::vector<int64_t> bounds(parts + 1, nodes);
+  for (int64_t p = 0; p < parts; ++p)
+    bounds[p] = std::lower_bound(off, off + nodes + 1, off[nodes] * p / parts) - off;
+  bounds[0] = 0;
+  return bounds;
+}
+
 }  // namespace
 
 torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& features,
@@ -558,30 +616,12 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
                                    const torch::Tensor& b2_in, const torch::Tensor& w3_in,
                                    const torch::Tensor& b3_in, const EdgeIndex& edges) {
   RECORD_FUNCTION("bsms::edge_mlp_segment_sum", std::vector<c10::IValue>());
-  if (torch::GradMode::is_enabled()) {
-    for (const auto* t :
-         {&features_in, &w1_in, &b1_in, &a_in, &b_in, &w2_in, &b2_in, &w3_in, &b3_in}) {
-      if (t->requires_grad())
-        throw InputError("graph kernel: edge_mlp_segment_sum is for inference (no gradients)");
-    }
-  }
-  auto features = checked_float(features_in, "features");
-  auto a = checked_float(a_in, "a");
-  auto b = checked_float(b_in, "b");
-  auto w1 = checked_float(w1_in, "w1");
-  auto w2 = checked_float(w2_in, "w2");
-  auto w3 = checked_float(w3_in, "w3");
-  auto b1 = b1_in.contiguous(), b2 = b2_in.contiguous(), b3 = b3_in.contiguous();
-  check_edges(features, edges, "features", true);
-  check_edges(a, edges, "a", false);
-  check_edges(b, edges, "b", false);
-  const int64_t channels = a.size(1), k = features.size(1), nodes = edges.num_nodes;
-  if (b.size(1) != channels || w1.size(0) != channels || w1.size(1) != k ||
-      b1.numel() != channels || w2.size(0) != channels || w2.size(1) != channels ||
-      b2.numel() != channels || w3.size(0) != channels || w3.size(1) != channels ||
-      b3.numel() != channels) {
-    throw InputError("graph kernel: edge_mlp_segment_sum shape mismatch");
-  }
+  const TiledEdgeMlp m =
+      checked_tiled_edge_mlp("edge_mlp_segment_sum", "features", features_in, w1_in, b1_in, a_in,
+                             b_in, w2_in, b2_in, w3_in, b3_in, edges, false);
+  const auto &features = m.x, &a = m.a, &b = m.b, &w1 = m.w1, &w2 = m.w2, &w3 = m.w3;
+  const auto &b1 = m.b1, &b2 = m.b2, &b3 = m.b3;
+  const int64_t channels = m.channels, k = m.k, nodes = m.nodes;
   auto w1t = w1.t().contiguous();  // [K, C]: the inner loop runs over contiguous channels
   const auto w2t = w2.t(), w3t = w3.t();
   auto out = torch::zeros({nodes, channels}, a.options());
@@ -600,12 +640,8 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
   constexpr int64_t kTile = 256;  // edges per tile: three [256, C] buffers stay in L2
   // Each worker owns a range of receivers holding about the same number of edges, so it alone
   // adds to their output rows.
-  const int64_t threads = at::in_parallel_region() ? 1 : at::get_num_threads();
-  const int64_t parts = std::max<int64_t>(1, std::min<int64_t>(threads, off[nodes] / kTile));
-  std::vector<int64_t> bounds(parts + 1, nodes);
-  for (int64_t p = 0; p < parts; ++p)
-    bounds[p] = std::lower_bound(off, off + nodes + 1, off[nodes] * p / parts) - off;
-  bounds[0] = 0;
+  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kTile);
+  const int64_t parts = static_cast<int64_t>(bounds.size()) - 1;
   parallel_blocks(parts, 1, [&](int64_t p0, int64_t p1) {
     auto h1 = torch::empty({kTile, channels}, a.options());
     auto h2 = torch::empty({kTile, channels}, a.options());
@@ -631,6 +667,94 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
         const int64_t e = order[q0 + t];
         layer_norm_accumulate_row(py + t * channels, pb3, channels, kLayerNormEps, stats,
                                   po + r[e] * channels);
+      }
+    }
+  });
+  return out;
+}
+
+torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Tensor& w1_in,
+                                 const torch::Tensor& b1_in, const torch::Tensor& a_in,
+                                 const torch::Tensor& b_in, const torch::Tensor& w2_in,
+                                 const torch::Tensor& b2_in, const torch::Tensor& w3_in,
+                                 const torch::Tensor& b3_in, const EdgeIndex& edges,
+                                 torch::Tensor& latent_out) {
+  RECORD_FUNCTION("bsms::edge_latent_update", std::vector<c10::IValue>());
+  const TiledEdgeMlp m =
+      checked_tiled_edge_mlp("edge_latent_update", "latent", latent_in, w1_in, b1_in, a_in, b_in,
+                             w2_in, b2_in, w3_in, b3_in, edges, true);
+  const auto &latent = m.x, &a = m.a, &b = m.b, &w1 = m.w1, &w2 = m.w2, &w3 = m.w3;
+  const auto &b1 = m.b1, &b2 = m.b2, &b3 = m.b3;
+  const int64_t channels = m.channels, k = m.k, nodes = m.nodes;
+  const auto w1t = w1.t(), w2t = w2.t(), w3t = w3.t();
+  auto out = torch::zeros({nodes, channels}, a.options());
+  latent_out = torch::empty_like(latent);
+  const float* pl = latent.data_ptr<float>();
+  const float* pa = a.data_ptr<float>();
+  const float* pb = b.data_ptr<float>();
+  const float* pb1 = b1.data_ptr<float>();
+  const float* pb2 = b2.data_ptr<float>();
+  const float* pb3 = b3.data_ptr<float>();
+  const int64_t* s = ptr(edges.senders);
+  const int64_t* r = ptr(edges.receivers);
+  const int64_t* off = ptr(edges.receiver_offsets);
+  const int64_t* order = ptr(edges.receiver_order);
+  float* po = out.data_ptr<float>();
+  float* plo = latent_out.data_ptr<float>();
+  constexpr int64_t kTile = 256;
+  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kTile);
+  const int64_t parts = static_cast<int64_t>(bounds.size()) - 1;
+  parallel_blocks(parts, 1, [&](int64_t p0, int64_t p1) {
+    auto g = torch::empty({kTile, k}, a.options());
+    auto h1 = torch::empty({kTile, channels}, a.options());
+    auto h2 = torch::empty({kTile, channels}, a.options());
+    float* pg = g.data_ptr<float>();
+    float* ph1 = h1.data_ptr<float>();
+    float* ph2 = h2.data_ptr<float>();
+    const int64_t j0 = bounds[p0], j1 = bounds[p1];
+    for (int64_t q0 = off[j0]; q0 < off[j1]; q0 += kTile) {
+      const int64_t n = std::min(kTile, off[j1] - q0);
+      for (int64_t t = 0; t < n; ++t) {
+        const int64_t e = order[q0 + t];
+        std::copy(pl + e * k, pl + (e + 1) * k, pg + t * k);
+      }
+      auto h1n = h1.narrow(0, 0, n);
+      at::mm_out(h1n, g.narrow(0, 0, n), w1t);
+      for (int64_t t = 0; t < n; ++t) {
+        const int64_t e = order[q0 + t];
+        float* o = ph1 + t * channels;
+        const float* as = pa + s[e] * channels;
+        const float* br = pb + r[e] * channels;
+#pragma omp simd
+        for (int64_t c = 0; c < channels; ++c) o[c] = std::max(o[c] + pb1[c] + as[c] + br[c], 0.0f);
+      }
+      auto h2n = h2.narrow(0, 0, n);
+      at::mm_out(h2n, h1n, w2t);
+      bias_relu_rows(ph2, pb2, true, 0, n, channels);
+      at::mm_out(h1n, h2n, w3t);  // h1 reused for the last layer's output
+      for (int64_t t = 0; t < n; ++t) {
+        const int64_t e = order[q0 + t];
+        const float* y = ph1 + t * channels;
+        float sum = 0.0f;
+#pragma omp simd reduction(+ : sum)
+        for (int64_t c = 0; c < channels; ++c) sum += y[c] + pb3[c];
+        const float mean = sum / static_cast<float>(channels);
+        float var = 0.0f;
+#pragma omp simd reduction(+ : var)
+        for (int64_t c = 0; c < channels; ++c) {
+          const float d = y[c] + pb3[c] - mean;
+          var += d * d;
+        }
+        const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + kLayerNormEps);
+        float* acc = po + r[e] * channels;
+        float* lo = plo + e * channels;
+        const float* li = pl + e * channels;
+#pragma omp simd
+        for (int64_t c = 0; c < channels; ++c) {
+          const float v = (y[c] + pb3[c] - mean) * rstd;
+          acc[c] += v;
+          lo[c] = li[c] + v;
+        }
       }
     }
   });

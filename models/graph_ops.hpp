@@ -47,6 +47,20 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features, const torch::T
                                    const torch::Tensor& b2, const torch::Tensor& w3,
                                    const torch::Tensor& b3, const EdgeIndex& edges);
 
+// Inference only: a MeshGraphNets edge-latent update (models/networks.cpp EdgeLatentBlock) in
+// tiles of edges that stay in cache:
+//   y_e = layer_norm(relu(relu(latent[e] · w1ᵀ + b1 + a[senders[e]] + b[receivers[e]]) · w2ᵀ + b2)
+//                    · w3ᵀ + b3),
+// writes latent_out[e] = latent[e] + y_e (a new [E, C] tensor) and returns
+// out[j] = Σ_{e: receivers[e] = j} y_e. Of the edge MLP's tensors only the LayerNorm output is
+// written. The same math as edge_first_layer → tail → layer_norm → segment_sum.
+torch::Tensor edge_latent_update(const torch::Tensor& latent, const torch::Tensor& w1,
+                                 const torch::Tensor& b1, const torch::Tensor& a,
+                                 const torch::Tensor& b, const torch::Tensor& w2,
+                                 const torch::Tensor& b2, const torch::Tensor& w3,
+                                 const torch::Tensor& b3, const EdgeIndex& edges,
+                                 torch::Tensor& latent_out);
+
 // out[j] = Σ_{e: receivers[e] = j} x[e]. x [E, C] -> [N, C].
 torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges);
 

@@ -188,9 +188,19 @@ torch::Tensor EdgeLatentBlock::forward(const torch::Tensor& v, std::vector<torch
       summed = torch::zeros_like(v).index_add_(0, index.receivers, update);
     } else {
       const auto& w = mlp.first()->weight;  // [L, 3L]: edge, sender, receiver columns
-      auto base = linear(latents[s], w.narrow(1, 0, latent), {}, false);
       auto a = linear(v, w.narrow(1, latent, latent), {}, false);
       auto b = linear(v, w.narrow(1, 2 * latent, latent), {}, false);
+      if (!torch::GradMode::is_enabled()) {
+        // Inference: the edge MLP, its LayerNorm, the residual and the sum over receivers in
+        // cache-sized tiles of edges (same math; only the LayerNorm output is written).
+        torch::Tensor next;
+        node_in.push_back(edge_latent_update(latents[s], w.narrow(1, 0, latent), mlp.first()->bias,
+                                             a, b, mlp.second()->weight, mlp.second()->bias,
+                                             mlp.third()->weight, mlp.third()->bias, index, next));
+        latents[s] = next;
+        continue;
+      }
+      auto base = linear(latents[s], w.narrow(1, 0, latent), {}, false);
       auto none = torch::empty({index.num_edges(), 0});
       auto hidden = mlp.tail(
           edge_first_layer(base, none, torch::empty({latent, 0}), mlp.first()->bias, a, b, index));

@@ -27,6 +27,8 @@ void write_multilevel_graph(const MultilevelGraph& graph, const std::string& pat
     file.set_attr("/", "version", kMultilevelVersion);
     file.set_attr("/", "seeding", to_string(graph.seeding));
     file.set_attr("/", "num_levels", static_cast<int64_t>(graph.num_levels()));
+    // Optional for readers (absent in older files: exact A²).
+    file.set_attr("/", "coarse_edges", std::string(graph.thinned ? "thinned" : "exact"));
     for (int k = 0; k < graph.num_levels(); ++k) {
       const GraphLevel& level = graph.levels[k];
       const std::string group = level_group(k);
@@ -99,6 +101,14 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
     out.seeding = parse_seeding(file.attr_string("/", "seeding"));
   } catch (const InputError& e) {
     throw InputError(path + ": attribute seeding: " + e.what());
+  }
+  if (file.has_attr("/", "coarse_edges")) {
+    const std::string coarse = file.attr_string("/", "coarse_edges");
+    if (coarse != "exact" && coarse != "thinned") {
+      throw InputError(path + ": attribute coarse_edges = \"" + coarse +
+                       "\", expected \"exact\" or \"thinned\"");
+    }
+    out.thinned = coarse == "thinned";
   }
   const int64_t num_levels = file.attr_int("/", "num_levels");
   if (num_levels < 1) {

@@ -5,6 +5,7 @@
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "preprocess/bi_stride_pooling.hpp"
+#include "preprocess/edge_thinning.hpp"
 #include "preprocess/seeding.hpp"
 
 namespace bsms {
@@ -28,6 +29,25 @@ Seeding parse_seeding(const std::string& name) {
   throw InputError("unknown seeding '" + name + "' (expected closecenter, minave or random)");
 }
 
+std::string to_string(Thinning thinning) {
+  switch (thinning) {
+    case Thinning::kAuto:
+      return "auto";
+    case Thinning::kOn:
+      return "on";
+    case Thinning::kOff:
+      return "off";
+  }
+  return "unknown";
+}
+
+Thinning parse_thinning(const std::string& name) {
+  if (name == "auto") return Thinning::kAuto;
+  if (name == "on") return Thinning::kOn;
+  if (name == "off") return Thinning::kOff;
+  throw InputError("unknown thinning '" + name + "' (expected auto, on or off)");
+}
+
 double mean_degree(const CsrGraph& graph) {
   return graph.num_nodes > 0
              ? static_cast<double>(graph.num_edges()) / static_cast<double>(graph.num_nodes)
@@ -44,12 +64,14 @@ RowMatrixXd select_rows(const RowMatrixXd& positions, const std::vector<int64_t>
 
 }  // namespace
 
-bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64_t level0_edges) {
-  if (candidate.num_nodes >= previous_nodes ||
-      static_cast<double>(candidate.num_edges()) >
-          kAutoMaxEdgesFactor * static_cast<double>(level0_edges)) {
-    return false;
-  }
+bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64_t level0_edges,
+                        int64_t coarse_edges, bool thinned) {
+  const double edges = static_cast<double>(candidate.num_edges());
+  const bool too_costly =
+      thinned ? static_cast<double>(coarse_edges) + edges >
+                    kAutoMaxEdgesFactor * static_cast<double>(level0_edges)
+              : edges > kAutoMaxLevelEdgesFactor * static_cast<double>(level0_edges);
+  if (candidate.num_nodes >= previous_nodes || too_costly) return false;
   const Components components = connected_components(candidate);
   std::vector<int64_t> size(components.count, 0);
   for (int64_t label : components.label) ++size[label];
@@ -63,7 +85,7 @@ bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64
          static_cast<double>(candidate.num_edges()) <= kAutoMaxDensity * pairs;
 }
 
-GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed,
+GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed, bool thin,
                          int64_t* clusters_out) {
   const ClusterNodes clusters = group_clusters(connected_components(fine.graph));
   if (clusters_out != nullptr) *clusters_out = clusters.count;
@@ -87,14 +109,21 @@ GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed,
   GraphLevel coarse;
   coarse.pooled = bi_stride_pool(fine.graph, clusters, seeds);
   coarse.graph = enhance_adjacency(fine.graph, coarse.pooled);
+  if (fine.positions.rows() == fine.num_nodes()) {
+    coarse.positions = select_rows(fine.positions, coarse.pooled);
+  }
+  if (thin) {
+    if (coarse.positions.rows() != coarse.num_nodes()) {
+      throw InputError("thinning coarse levels needs the positions of all " +
+                       std::to_string(fine.num_nodes()) + " nodes");
+    }
+    coarse.graph = thin_adjacency(coarse.graph, coarse.positions);
+  }
   std::vector<double> weight = fine.node_weight;
   if (weight.empty()) weight.assign(fine.num_nodes(), 1.0);
   TransitionWeights transition = transition_weights(fine.graph, weight, coarse.pooled);
   coarse.down_weight = std::move(transition.down_weight);
   coarse.node_weight = std::move(transition.node_weight);
-  if (fine.positions.rows() == fine.num_nodes()) {
-    coarse.positions = select_rows(fine.positions, coarse.pooled);
-  }
   return coarse;
 }
 
@@ -109,7 +138,15 @@ MultilevelGraph build_multilevel_graph(CsrGraph graph, const RowMatrixXd& positi
   const int target = automatic ? kAutoMaxLevels : options.num_levels;
   MultilevelGraph out;
   out.seeding = options.seeding;
+  // Thinning needs positions; auto thins only automatic hierarchies.
+  const bool have_positions = positions.rows() == graph.num_nodes && positions.cols() >= 1;
+  if (options.thinning == Thinning::kOn && !have_positions) {
+    throw InputError("thinning coarse levels needs node positions");
+  }
+  out.thinned = options.thinning == Thinning::kOn ||
+                (options.thinning == Thinning::kAuto && automatic && have_positions);
   const int64_t level0_edges = graph.num_edges();
+  int64_t coarse_edges = 0;
   if (report != nullptr) {
     report->clear();
     report->push_back({0, graph.num_nodes, graph.num_edges(), connected_components(graph).count,
@@ -124,12 +161,14 @@ MultilevelGraph build_multilevel_graph(CsrGraph graph, const RowMatrixXd& positi
     Stopwatch clock;
     int64_t clusters = 0;
     // Mix the level into the random seed so levels draw independently.
-    GraphLevel next =
-        coarsen_level(out.levels.back(), options.seeding,
-                      options.seed + 0x9E3779B97F4A7C15ull * static_cast<uint64_t>(k), &clusters);
-    if (automatic && !auto_accepts_level(next.graph, out.levels.back().num_nodes(), level0_edges)) {
+    GraphLevel next = coarsen_level(out.levels.back(), options.seeding,
+                                    options.seed + 0x9E3779B97F4A7C15ull * static_cast<uint64_t>(k),
+                                    out.thinned, &clusters);
+    if (automatic && !auto_accepts_level(next.graph, out.levels.back().num_nodes(), level0_edges,
+                                         coarse_edges, out.thinned)) {
       break;
     }
+    coarse_edges += next.graph.num_edges();
     if (report != nullptr) {
       report->push_back({k, next.num_nodes(), next.graph.num_edges(), clusters,
                          mean_degree(next.graph), clock.milliseconds()});

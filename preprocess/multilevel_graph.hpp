@@ -27,33 +27,48 @@ struct GraphLevel {
 
 struct MultilevelGraph {
   Seeding seeding = Seeding::kCloseCenter;
+  bool thinned = false;  // coarse levels thinned (edge_thinning.hpp) rather than exact A²
   std::vector<GraphLevel> levels;  // levels[0] is the input mesh graph
   int num_levels() const { return static_cast<int>(levels.size()); }
 };
 
-// `--levels auto`: a candidate level k+1 is added only while all of these hold, so coarse levels
-// neither turn dense nor tiny. A² roughly doubles the mean degree per level on 2D meshes
-// (DESIGN.md: a 243K-node mesh reaches 450K edges on 730 nodes at level 8) and triples it on 3D
-// tetrahedral meshes:
+// Coarse-level thinning (preprocess/edge_thinning.hpp): kAuto thins with `--levels auto` and
+// keeps the exact A² of DESIGN.md when a level count is given; kOn / kOff force it.
+enum class Thinning { kAuto, kOn, kOff };
+std::string to_string(Thinning thinning);
+Thinning parse_thinning(const std::string& name);  // "auto" | "on" | "off"; InputError
+
+// `--levels auto` (thinned levels): a candidate level k+1 is added only while all of these hold,
+// so the hierarchy costs a bounded multiple of its mesh and stops once a level is small enough to
+// give every cluster global reach:
 //   N(k+1) < N(k)                                    pooling still removes nodes;
 //   largest cluster of level k+1 >= kAutoMinClusterNodes nodes;
-//   E(k+1) <= kAutoMaxEdgesFactor * E(0)             message passing on a coarse level costs at
-//                                                    most twice the input mesh's;
+//   E(1) + ... + E(k+1) <= kAutoMaxEdgesFactor * E(0)  all coarse levels together cost at most
+//                                                    this many mesh-level message passings;
 //   E(k+1) <= kAutoMaxDensity * sum_c n_c (n_c - 1)  at most this fraction of the node pairs
 //                                                    inside clusters are joined.
+// Without thinning (positions missing, or Thinning::kOff with auto levels) the edge bound applies
+// to each level alone, as before thinning existed: exact A² roughly doubles the mean degree per
+// level on 2D meshes (a 1M-node plate: 9 levels, 5.8x the edges of level 0), so a total bound
+// would stop after one or two levels.
 constexpr int64_t kAutoMinClusterNodes = 16;
 constexpr double kAutoMaxEdgesFactor = 2.0;
+constexpr double kAutoMaxLevelEdgesFactor = 2.0;  // per level, exact A²
 constexpr double kAutoMaxDensity = 0.25;
 constexpr int kAutoMaxLevels = 64;
 
 // True when `candidate` (a coarser level of a graph whose level 0 has `level0_edges` edges, built
-// from a level of `previous_nodes` nodes) passes the `--levels auto` rule above.
-bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64_t level0_edges);
+// from a level of `previous_nodes` nodes, with `coarse_edges` edges on the coarse levels already
+// accepted) passes the `--levels auto` rule above; `thinned` selects the total or per-level edge
+// bound.
+bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64_t level0_edges,
+                        int64_t coarse_edges, bool thinned);
 
 struct BuildOptions {
   Seeding seeding = Seeding::kCloseCenter;
   int num_levels = 0;  // total levels including the input graph; 0 = auto (rule above)
   uint64_t seed = 0;   // Seeding::kRandom only
+  Thinning thinning = Thinning::kAuto;
 };
 
 // Per-level figures of a build, for the CLI table and benchmarks.
@@ -78,9 +93,9 @@ MultilevelGraph build_multilevel_graph(const Mesh& mesh, const BuildOptions& opt
                                        std::vector<LevelReport>* report = nullptr);
 
 // One coarsening step: level k+1 from level k (graph, positions and node weights set).
-// `seed` is used by Seeding::kRandom only; `clusters_out` receives the number of clusters of
-// `fine`.
-GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed,
+// `seed` is used by Seeding::kRandom only; `thin`: thin the coarse graph (needs positions);
+// `clusters_out` receives the number of clusters of `fine`.
+GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed, bool thin = false,
                          int64_t* clusters_out = nullptr);
 
 double mean_degree(const CsrGraph& graph);  // directed edges / nodes (0 for an empty graph)

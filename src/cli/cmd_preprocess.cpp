@@ -23,6 +23,7 @@ struct PreprocessOptions {
   std::string out;
   std::string seeding = "closecenter";
   std::string levels = "auto";
+  std::string thinning = "auto";
   uint64_t seed = 0;
   int threads = 0;
 };
@@ -124,6 +125,7 @@ void run_preprocess(const PreprocessOptions& options) {
   build.seeding = bsms::parse_seeding(options.seeding);
   build.num_levels = parse_levels(options.levels);
   build.seed = options.seed;
+  build.thinning = bsms::parse_thinning(options.thinning);
   check_output_path(options.out);
 
   bsms::Stopwatch clock;
@@ -146,8 +148,9 @@ void run_preprocess(const PreprocessOptions& options) {
   std::printf("mesh %s: %lld nodes, %lld cells (dim %d, cell dim %d)\n", options.mesh.c_str(),
               static_cast<long long>(mesh.num_nodes()), static_cast<long long>(mesh.num_cells()),
               mesh.dim, mesh.cell_dim);
-  std::printf("seeding %s, %d levels (%s), %d threads\n", options.seeding.c_str(),
-              graph.num_levels(), options.levels == "auto" ? "auto" : "requested", threads);
+  std::printf("seeding %s, %d levels (%s), coarse levels %s, %d threads\n", options.seeding.c_str(),
+              graph.num_levels(), options.levels == "auto" ? "auto" : "requested",
+              graph.thinned ? "thinned" : "exact A^2", threads);
   print_table(report);
   std::printf("read %.1f ms, build %.1f ms, write %.1f ms, total %.1f ms -> %s\n", read_ms,
               build_ms, write_ms, total.milliseconds(), options.out.c_str());
@@ -159,7 +162,8 @@ BSMS_COMMAND(
     "preprocess", "build the bi-stride multilevel graph file of a mesh", [](CLI::App& sub) {
       auto options = std::make_shared<PreprocessOptions>();
       auto* mesh = sub.add_option("--mesh", options->mesh,
-                                  "mesh read by gmsh (.msh 2.2/4.1, or a .geo meshed on the fly)");
+                                  "mesh: .msh 2.2/4.1 (read directly), or any file gmsh reads (a "
+                                  ".geo is meshed on the fly)");
       auto* data = sub.add_option("--data", options->data,
                                   "dataset folder: every mesh topology of its splits, written to "
                                   "--out (default DATA/multilevel/) where bsms train finds them");
@@ -171,12 +175,17 @@ BSMS_COMMAND(
                      "minimum average BFS distance) or random")
           ->check(CLI::IsMember({"closecenter", "minave", "random"}))
           ->default_val("closecenter");
-      sub.add_option(
-             "--levels", options->levels,
-             "number of levels including the input mesh, or auto: add a level while it "
-             "has fewer nodes than the previous one, its largest cluster keeps >= 16 "
-             "nodes, it has at most twice the edges of level 0, and at most 25% of the node pairs "
-             "inside its clusters are edges (A^2 roughly doubles the degree per level)")
+      sub.add_option("--levels", options->levels,
+                     "number of levels including the input mesh, or auto: add a (thinned) level "
+                     "while it has fewer nodes than the previous one, its largest cluster keeps "
+                     ">= 16 nodes, all coarse levels together have at most the edges of level 0, "
+                     "and at most 25% of the node pairs inside its clusters are edges")
+          ->default_val("auto");
+      sub.add_option("--thinning", options->thinning,
+                     "coarse levels: on = keep each node's nearest and farthest A^2 neighbour "
+                     "per direction cone once its degree exceeds 2 x cones (8 in 2D, 14 in 3D), "
+                     "off = exact A^2 (DESIGN.md), auto = on with --levels auto (--mesh only)")
+          ->check(CLI::IsMember({"auto", "on", "off"}))
           ->default_val("auto");
       sub.add_option("--seed", options->seed, "random seeding: generator seed")
           ->check(CLI::NonNegativeNumber)

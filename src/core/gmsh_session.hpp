@@ -17,8 +17,8 @@ class GmshSession {
   GmshSession(const GmshSession&) = delete;
   GmshSession& operator=(const GmshSession&) = delete;
 
-  // Extracts the mesh of the current gmsh model with the semantics of read_mesh (top dimension
-  // decides the cells, ascending node tags, unused nodes dropped, physical groups by name).
+  // Extracts the mesh of the current gmsh model with the semantics of read_mesh (assemble_mesh:
+  // top dimension decides the cells, ascending node tags, unused nodes dropped, physical groups).
   // `context` prefixes error messages (usually the file name).
   Mesh extract_mesh(const std::string& context) const;
 

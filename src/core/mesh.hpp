@@ -1,7 +1,9 @@
-// Simplicial meshes (line, triangle, tetrahedron) read through the gmsh library.
+// Simplicial meshes (line, triangle, tetrahedron) read from gmsh MSH files (directly, see
+// msh_reader.hpp) or through the gmsh library (other formats, geometry files).
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <string>
@@ -29,14 +31,46 @@ struct Mesh {
 // Largest mesh read_mesh generates from a geometry file (nodes, estimated before meshing).
 constexpr double kMaxGeometryNodes = 5e7;
 
-// Reads a mesh with gmsh (any format gmsh reads: .msh 2.2 / 4.1, ...). A geometry file (.geo,
-// .step, .brep) is meshed first with its highest dimension, unless its element size would give
-// more than kMaxGeometryNodes nodes (InputError with the estimate). The top dimension present
-// decides the cells; nodes are numbered by ascending gmsh node tag and nodes no top-dimension cell
-// uses are dropped. `dim` is 3 if any z coordinate is non-zero or cells are tetrahedra, else 2 if
-// any y is non-zero or cells are triangles, else 1. Throws InputError naming the file and the
-// problem.
+// Reads a mesh file. A file whose first non-blank line is $MeshFormat with version 2.2 or 4.1
+// (ASCII or binary) is parsed by the direct reader (read_msh, msh_reader.hpp), except for the MSH
+// features it leaves to gmsh (partitioned meshes, byte-swapped binary, polygons; MshNotHandled);
+// every other file is read by read_mesh_with_gmsh. Both give the same Mesh (assemble_mesh).
+// Throws InputError naming the file and the problem.
 Mesh read_mesh(const std::string& path);
+
+// Reads a mesh with the gmsh library (any format gmsh reads). A geometry file (.geo, .step,
+// .brep) is meshed first with its highest dimension, unless its element size would give more
+// than kMaxGeometryNodes nodes (InputError with the estimate). The semantics are assemble_mesh's.
+Mesh read_mesh_with_gmsh(const std::string& path);
+
+// A mesh in gmsh's terms, as a gmsh model or an MSH file holds it, before bsms' rules apply.
+// Node tag arrays live in `tag_lists`; cells and groups refer to them by index, so that an
+// element block shared by the cells and a physical group is stored once.
+struct MeshParts {
+  std::vector<std::size_t> node_tags;               // [M] every node (any order)
+  std::vector<double> node_coords;                  // [M, 3] their x, y, z
+  std::vector<std::vector<std::size_t>> tag_lists;  // node tags of element blocks or groups
+  int cell_dim = 0;                // highest entity dimension (1..3) with elements; 0: none
+  std::vector<int> cell_types;     // gmsh element types present in that dimension
+  std::vector<std::size_t> cells;  // tag_lists whose concatenation is the cells' node tags
+  struct Group {
+    int dim = 0;
+    int tag = 0;
+    std::string name;                // empty: unnamed, reported as "dim:tag"
+    std::vector<std::size_t> lists;  // tag_lists holding the group's nodes (repeats allowed)
+  };
+  std::vector<Group> groups;
+};
+
+// The rules read_mesh applies to a gmsh model or an MSH file, defined once: `cell_dim` decides
+// the cells, which must all be 2-node lines, 3-node triangles or 4-node tetrahedra (else
+// InputError "unsupported or mixed cells of dimension ..."); nodes no cell uses are dropped and
+// the others numbered by ascending node tag; `dim` is 3 if any kept z coordinate is non-zero or
+// cells are tetrahedra, else 2 if any y is non-zero or cells are triangles, else 1; each physical
+// group (any dimension) gives name -> sorted kept node indices (groups sharing a name are
+// merged); then validate_mesh. A node tag listed twice with different coordinates, or an element
+// node without coordinates, is an InputError. `context` prefixes messages (the file name).
+Mesh assemble_mesh(MeshParts parts, const std::string& context);
 
 // Builds a mesh from in-memory arrays (validated like a file); used by tests and scene builders.
 Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells);

@@ -49,6 +49,7 @@ int auto_levels(const TrajectoryMesh& mesh, Seeding seeding) {
   BuildOptions options;
   options.seeding = seeding;
   options.num_levels = 0;
+  options.thinning = Thinning::kOff;  // training builds exact A² hierarchies of this depth
   return build_multilevel_graph(to_mesh(mesh), options).num_levels();
 }
 

@@ -2,11 +2,15 @@
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
+
 #include <omp.h>
+#include <Eigen/Dense>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <random>
 
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
@@ -324,6 +328,123 @@ TEST(Mesh, HugeGeometryIsRefusedBeforeMeshing) {
   EXPECT_NE(error.find("would mesh to about 1.2e+10 nodes"), std::string::npos) << error;
   EXPECT_NE(error.find("limit 5e+07"), std::string::npos) << error;
   EXPECT_LT(seconds, 10.0);
+}
+
+// find_bad_cells against a plain statement of its rule (faces grouped in a std::map, Eigen
+// determinants) on jittered 2D and 3D grids with folded and collapsed cells.
+TEST(Mesh, FindBadCellsEqualsBruteForceOnRandomMeshes) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int64_t total_inverted = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    const int dim = trial % 2 == 0 ? 2 : 3;
+    const int n = dim == 2 ? 9 : 4;
+    const int side = n + 1;
+    const int64_t nodes = dim == 2 ? side * side : side * side * side;
+    RowMatrixXd p(nodes, dim);
+    for (int64_t v = 0; v < nodes; ++v) {
+      int64_t rest = v;
+      for (int i = 0; i < dim; ++i) {
+        p(v, i) = static_cast<double>(rest % side) + 0.3 * (unit(rng) - 0.5);
+        rest /= side;
+      }
+    }
+    // Move a few nodes far (folds) and collapse a few onto a neighbour (zero measure).
+    for (int m = 0; m < 3; ++m) {
+      const int64_t v = static_cast<int64_t>(unit(rng) * nodes);
+      for (int i = 0; i < dim; ++i) p(v, i) += 1.6 * (unit(rng) - 0.5);
+    }
+    std::vector<std::array<int64_t, 4>> cells;
+    auto id = [&](int x, int y, int z) { return x + side * (y + side * z); };
+    if (dim == 2) {
+      for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x) {
+          cells.push_back({id(x, y, 0), id(x + 1, y, 0), id(x + 1, y + 1, 0), -1});
+          cells.push_back({id(x, y, 0), id(x + 1, y + 1, 0), id(x, y + 1, 0), -1});
+        }
+    } else {
+      for (int z = 0; z < n; ++z)
+        for (int y = 0; y < n; ++y)
+          for (int x = 0; x < n; ++x) {
+            const int64_t c0 = id(x, y, z), c1 = id(x + 1, y, z), c2 = id(x + 1, y + 1, z),
+                          c3 = id(x, y + 1, z), c4 = id(x, y, z + 1), c5 = id(x + 1, y, z + 1),
+                          c6 = id(x + 1, y + 1, z + 1), c7 = id(x, y + 1, z + 1);
+            for (const auto& t : std::vector<std::array<int64_t, 4>>{{c0, c1, c2, c6},
+                                                                     {c0, c2, c3, c6},
+                                                                     {c0, c3, c7, c6},
+                                                                     {c0, c7, c4, c6},
+                                                                     {c0, c4, c5, c6},
+                                                                     {c0, c5, c1, c6}})
+              cells.push_back(t);
+          }
+    }
+    const int k = dim + 1;
+    RowMatrixXi64 c(static_cast<int64_t>(cells.size()), k);
+    for (size_t i = 0; i < cells.size(); ++i)
+      for (int a = 0; a < k; ++a) c(i, a) = cells[i][a];
+    // Collapse: a cell's vertex placed on another of its vertices.
+    const int64_t flat = static_cast<int64_t>(unit(rng) * c.rows());
+    p.row(c(flat, 1)) = p.row(c(flat, 0));
+    const Mesh mesh = make_mesh(dim, p, c);
+    // Brute force.
+    const int64_t C = c.rows();
+    std::vector<double> measure(C);
+    std::vector<int> kind(C, 0);
+    int64_t positive = 0, degenerate = 0;
+    for (int64_t i = 0; i < C; ++i) {
+      Eigen::MatrixXd jac(dim, dim);
+      double longest = 0.0;
+      for (int a = 0; a < k; ++a)
+        for (int b = a + 1; b < k; ++b)
+          longest = std::max(longest, (p.row(c(i, a)) - p.row(c(i, b))).norm());
+      for (int a = 0; a < dim; ++a) jac.col(a) = (p.row(c(i, a + 1)) - p.row(c(i, 0))).transpose();
+      measure[i] = longest > 0 ? jac.determinant() / std::pow(longest, dim) : 0.0;
+      if (!(std::abs(measure[i]) > 1e-10)) {
+        kind[i] = 1;
+        ++degenerate;
+      } else if (measure[i] > 0) {
+        ++positive;
+      }
+    }
+    const double majority = 2 * positive >= C - degenerate ? 1.0 : -1.0;
+    std::map<std::vector<int64_t>, std::vector<std::pair<int64_t, int64_t>>> faces;
+    for (int64_t i = 0; i < C; ++i) {
+      if (kind[i]) continue;
+      for (int skip = 0; skip < k; ++skip) {
+        std::vector<int64_t> key;
+        for (int a = 0; a < k; ++a)
+          if (a != skip) key.push_back(c(i, a));
+        std::sort(key.begin(), key.end());
+        faces[key].push_back({i, c(i, skip)});
+      }
+    }
+    int64_t inverted = 0;
+    for (const auto& [key, list] : faces) {
+      auto side = [&](int64_t v) {
+        Eigen::MatrixXd m(dim, dim);
+        for (int a = 1; a < dim; ++a) m.col(a - 1) = (p.row(key[a]) - p.row(key[0])).transpose();
+        m.col(dim - 1) = (p.row(v) - p.row(key[0])).transpose();
+        return m.determinant();
+      };
+      for (size_t j = 0; j + 1 < list.size(); ++j) {
+        if (!(side(list[j].second) * side(list[j + 1].second) > 0.0)) continue;
+        for (int64_t cell : {list[j].first, list[j + 1].first})
+          if (kind[cell] == 0 && measure[cell] * majority < 0.0) {
+            kind[cell] = 2;
+            ++inverted;
+          }
+      }
+    }
+    const BadCells bad = find_bad_cells(mesh);
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    EXPECT_EQ(bad.degenerate, degenerate);
+    EXPECT_EQ(bad.inverted, inverted);
+    EXPECT_GE(bad.count(), 1);  // the collapsed cell at least
+    const auto first = std::find_if(kind.begin(), kind.end(), [](int x) { return x != 0; });
+    EXPECT_EQ(bad.first, first - kind.begin());
+    total_inverted += inverted;
+  }
+  EXPECT_GT(total_inverted, 5);  // folds occur, so both kinds are compared
 }
 
 }  // namespace

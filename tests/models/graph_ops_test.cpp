@@ -158,6 +158,33 @@ TEST(GraphOps, FusedInferenceEdgeMlpMatchesTheComposedKernels) {
                InputError);
 }
 
+TEST(GraphOps, FusedEdgeLatentUpdateMatchesTheComposedKernels) {
+  torch::manual_seed(6);
+  // 900 edges: several tiles and, with 2 threads, two receiver ranges; node 0 receives nothing.
+  const int64_t n = 70, e = 900, c = 20;
+  auto index = EdgeIndex::from_pairs(random_pairs(n - 1, e) + 1, n);
+  auto latent = torch::randn({e, c});
+  auto w1 = torch::randn({c, c}) / 4, b1 = torch::randn({c});
+  auto a = torch::randn({n, c}), b = torch::randn({n, c});
+  auto w2 = torch::randn({c, c}) / 5, b2 = torch::randn({c});
+  auto w3 = torch::randn({c, c}) / 5, b3 = torch::randn({c});
+  torch::NoGradGuard no_grad;
+  // The training path of EdgeLatentBlock (models/networks.cpp).
+  auto base = linear(latent, w1, {}, false);
+  auto h1 = edge_first_layer(base, torch::empty({e, 0}), torch::empty({c, 0}), b1, a, b, index);
+  auto y = at::layer_norm(linear(linear(h1, w2, b2, true), w3, b3, false), {c});
+  auto composed = segment_sum(y, index);
+  torch::Tensor next;
+  auto fused = edge_latent_update(latent, w1, b1, a, b, w2, b2, w3, b3, index, next);
+  expect_close(fused, composed);
+  expect_close(next, latent + y);
+  EXPECT_EQ(fused[0].abs().max().item<float>(), 0.0f);
+  // Edge latents of another width than the node latents are refused.
+  EXPECT_THROW(edge_latent_update(torch::randn({e, c + 1}), torch::randn({c, c + 1}), b1, a, b, w2,
+                                  b2, w3, b3, index, next),
+               InputError);
+}
+
 TEST(GraphOps, SegmentSumMatchesIndexAdd) {
   torch::manual_seed(4);
   const int64_t n = 11, e = 60, c = 5;

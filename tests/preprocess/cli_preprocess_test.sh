@@ -62,6 +62,21 @@ case $case_name in
     "$bsms" preprocess --mesh "$work/square.msh" --out "$out" --levels 1 >/dev/null ||
       fail "a two-triangle mesh with one level failed"
     "$bsms" preprocess --help | grep -q -- "--levels" || fail "--help lacks --levels"
+    # Thinned coarse levels: the default with --levels auto, on request with a level count.
+    rm -f "$out"
+    "$bsms" preprocess --mesh "$geometry" --out "$out" >"$work/stdout" 2>&1 ||
+      fail "auto levels: exit $?"
+    grep -q "coarse levels thinned" "$work/stdout" || fail "auto levels are not thinned"
+    "$bsms" preprocess --mesh "$geometry" --out "$out" --levels 4 >"$work/stdout" 2>&1 ||
+      fail "4 levels: exit $?"
+    grep -q "coarse levels exact A^2" "$work/stdout" || fail "a level count is not exact A^2"
+    "$bsms" preprocess --mesh "$geometry" --out "$out" --levels 4 --thinning on \
+      >"$work/stdout" 2>&1 || fail "4 thinned levels: exit $?"
+    grep -q "4 levels (requested), coarse levels thinned" "$work/stdout" ||
+      fail "--thinning on with 4 levels: $(cat "$work/stdout")"
+    # The scale benchmark's geometry at its default (coarse) element size.
+    "$bsms" preprocess --mesh "$source_dir/configs/geometry/plate_hole.geo" --out "$out" \
+      >"$work/stdout" 2>&1 || fail "plate_hole.geo: exit $? ($(cat "$work/stdout"))"
     ;;
   missing_mesh) expect_bad_input "not found" --mesh "$work/none.msh" --out "$out" ;;
   empty_file)
@@ -98,6 +113,8 @@ case $case_name in
   levels_zero) expect_bad_input "levels" --mesh "$work/square.msh" --out "$out" --levels 0 ;;
   levels_text) expect_bad_input "levels" --mesh "$work/square.msh" --out "$out" --levels many ;;
   bad_seeding) expect_bad_input "seeding" --mesh "$work/square.msh" --out "$out" --seeding best ;;
+  bad_thinning)
+    expect_bad_input "thinning" --mesh "$work/square.msh" --out "$out" --thinning maybe ;;
   bad_threads) expect_bad_input "threads" --mesh "$work/square.msh" --out "$out" --threads -3 ;;
   unwritable_out)
     : >"$work/plain"

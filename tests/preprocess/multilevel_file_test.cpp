@@ -63,6 +63,22 @@ TEST(MultilevelFile, RoundTrip) {
     EXPECT_EQ(back.levels[k].pooled, ml.levels[k].pooled);
     EXPECT_EQ(back.levels[k].down_weight, ml.levels[k].down_weight);
   }
+  EXPECT_FALSE(back.thinned);
+}
+
+TEST(MultilevelFile, ThinnedFlagRoundTrips) {
+  TempDir dir;
+  std::mt19937_64 rng(1);
+  const auto g = test::grid_triangles(30, 30, 0.0, 0.3, rng);
+  const MultilevelGraph ml = build_multilevel_graph(g.graph, g.positions, BuildOptions{});
+  ASSERT_TRUE(ml.thinned);
+  write_multilevel_graph(ml, dir.file("thin.h5"));
+  const MultilevelGraph back = read_multilevel_graph(dir.file("thin.h5"));
+  EXPECT_TRUE(back.thinned);
+  ASSERT_EQ(back.num_levels(), ml.num_levels());
+  EXPECT_EQ(back.levels.back().graph.targets, ml.levels.back().graph.targets);
+  H5File file(dir.file("thin.h5"), H5File::Mode::kRead);
+  EXPECT_EQ(file.attr_string("/", "coarse_edges"), "thinned");
 }
 
 TEST(MultilevelFile, LayoutFollowsDesign) {
@@ -128,6 +144,8 @@ TEST(MultilevelFile, ReaderRejectsDamagedFiles) {
   expect_rejected([](H5File& f) { f.set_attr("/", "format", std::string("other")); }, "format");
   expect_rejected([](H5File& f) { f.set_attr("/", "version", int64_t{2}); }, "version");
   expect_rejected([](H5File& f) { f.set_attr("/", "seeding", std::string("best")); }, "seeding");
+  expect_rejected([](H5File& f) { f.set_attr("/", "coarse_edges", std::string("some")); },
+                  "coarse_edges");
   expect_rejected([](H5File& f) { f.set_attr("/", "num_levels", int64_t{5}); }, "level_4");
   expect_rejected([](H5File& f) { f.remove("/level_2/pooled"); }, "/level_2/pooled");
   expect_rejected([](H5File& f) { f.remove("/level_1/edges"); }, "/level_1/edges");
