@@ -3,7 +3,6 @@
 #include <ATen/Parallel.h>
 #include <ATen/ThreadLocalState.h>
 #include <ATen/record_function.h>
-#include <dlfcn.h>
 #include <torch/autograd.h>
 
 #include <algorithm>
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/runtime.hpp"
 
 namespace bsms {
 namespace {
@@ -769,10 +769,7 @@ torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const 
 
 int configure_threads(int threads) {
   if (threads > 0) torch::set_num_threads(threads);
-  using SetThreads = void (*)(int);
-  if (auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) {
-    set(1);
-  }
+  single_threaded_blas();
   return torch::get_num_threads();
 }
 

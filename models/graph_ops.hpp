@@ -25,9 +25,9 @@ torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& f
 torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
                      bool relu);
 
-// Sets LibTorch's thread count (<= 0: keep it) and makes OpenBLAS, when loaded, single-threaded:
-// linear() splits GEMMs over LibTorch's passive OpenMP pool instead, so no second pool of spinning
-// BLAS threads competes for the cores. Returns the LibTorch thread count.
+// LibTorch's half of core/runtime.hpp's set_num_threads: sets LibTorch's thread count (<= 0: keep
+// it) and makes OpenBLAS single-threaded (core's single_threaded_blas), because linear() splits
+// GEMMs over LibTorch's OpenMP pool itself. Returns the LibTorch thread count.
 int configure_threads(int threads);
 
 // out[j] = Σ_{e: receivers[e] = j} layer_norm(x[e] + bias) (no affine, eps 1e-5), without storing

@@ -26,7 +26,13 @@ Seeding parse_seeding(const std::string& name) {
   if (name == "closecenter") return Seeding::kCloseCenter;
   if (name == "minave") return Seeding::kMinAve;
   if (name == "random") return Seeding::kRandom;
-  throw InputError("unknown seeding '" + name + "' (expected closecenter, minave or random)");
+  throw InputError("unknown seeding '" + name + "' (expected minave, closecenter or random)");
+}
+
+std::vector<std::string> seeding_names() {
+  std::vector<std::string> names;
+  for (const Seeding s : kAllSeedings) names.push_back(to_string(s));
+  return names;
 }
 
 std::string to_string(Thinning thinning) {

@@ -1,6 +1,7 @@
 // The bi-stride multilevel graph (thesis §4.2, DESIGN.md "Multilevel graph file").
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -11,8 +12,12 @@
 namespace bsms {
 
 enum class Seeding { kCloseCenter, kMinAve, kRandom };
-std::string to_string(Seeding seeding);
+// Every seeding, in the order tables and help texts list them.
+constexpr std::array<Seeding, 3> kAllSeedings{Seeding::kMinAve, Seeding::kCloseCenter,
+                                              Seeding::kRandom};
+std::string to_string(Seeding seeding);          // the name of files, configs and the CLI
 Seeding parse_seeding(const std::string& name);  // "closecenter" | "minave" | "random"; InputError
+std::vector<std::string> seeding_names();        // to_string of kAllSeedings
 
 struct GraphLevel {
   CsrGraph graph;                  // symmetric adjacency among this level's nodes, no self loops

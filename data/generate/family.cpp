@@ -494,11 +494,9 @@ class UnionSampler : public SceneSampler {
 }  // namespace
 
 uint64_t Rng::next() {
-  state_ += 0x9e3779b97f4a7c15ULL;
-  uint64_t z = state_;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
+  const uint64_t out = splitmix64(state_);  // the SplitMix64 sequence of core/hash.hpp
+  state_ += kSplitMix64Increment;
+  return out;
 }
 
 double Rng::uniform() {

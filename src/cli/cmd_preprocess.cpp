@@ -90,25 +90,24 @@ void run_preprocess_data(const PreprocessOptions& options) {
   fs::create_directories(out, ec);
   if (ec || !fs::is_directory(out))
     throw bsms::InputError(out + ": cannot create the output folder");
+  // The store reuses an entry already in `out` that matches (so a stopped run resumes) and
+  // builds and writes the others, exactly as training's first use would.
+  bsms::GraphStore store(seeding, levels, {out}, options.seed, /*require_write=*/true);
   std::set<std::string> done;
-  std::printf("%-18s %8s %10s %12s %8s\n", "topology", "levels", "nodes", "edges(L0)", "ms");
+  std::printf("%-18s %8s %10s %12s %10s\n", "topology", "levels", "nodes", "edges(L0)", "ms");
   for (const auto& d : splits) {
     for (int64_t t = 0; t < d.num_trajectories(); ++t) {
       const auto& mesh = d.mesh(t);
-      const std::string key = bsms::topology_key(mesh);
-      if (!done.insert(key).second) continue;
+      if (!done.insert(bsms::topology_key(mesh)).second) continue;
       bsms::Stopwatch clock;
-      bsms::BuildOptions build;
-      build.seeding = seeding;
-      build.num_levels = levels;
-      build.seed = options.seed;
-      const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(bsms::to_mesh(mesh), build);
-      bsms::write_multilevel_graph(
-          graph, (fs::path(out) / bsms::multilevel_cache_name(seeding, levels, key, options.seed))
-                     .string());
-      std::printf("%-18s %8d %10lld %12lld %8.1f\n", key.c_str(), graph.num_levels(),
-                  static_cast<long long>(graph.levels[0].num_nodes()),
-                  static_cast<long long>(graph.levels[0].graph.num_edges()), clock.milliseconds());
+      const bsms::MeshGraphs& graphs = store.get(mesh);
+      const bsms::GraphLevel& finest = graphs.multilevel.levels[0];
+      char ms[32];
+      std::snprintf(ms, sizeof ms, "%.1f", clock.milliseconds());
+      std::printf("%-18s %8d %10lld %12lld %10s\n", graphs.key.c_str(),
+                  graphs.multilevel.num_levels(), static_cast<long long>(finest.num_nodes()),
+                  static_cast<long long>(finest.graph.num_edges()),
+                  graphs.from_cache ? "cached" : ms);
     }
   }
   std::printf("%zu topologies, %d levels, seeding %s, %d threads, %.1f ms -> %s\n", done.size(),
@@ -173,13 +172,14 @@ BSMS_COMMAND(
       sub.add_option("--seeding", options->seeding,
                      "seed per cluster: closecenter (nearest the mean position), minave (exact "
                      "minimum average BFS distance) or random")
-          ->check(CLI::IsMember({"closecenter", "minave", "random"}))
+          ->check(CLI::IsMember(bsms::seeding_names()))
           ->default_val("closecenter");
-      sub.add_option("--levels", options->levels,
-                     "number of levels including the input mesh, or auto: add a (thinned) level "
-                     "while it has fewer nodes than the previous one, its largest cluster keeps "
-                     ">= 16 nodes, all coarse levels together have at most the edges of level 0, "
-                     "and at most 25% of the node pairs inside its clusters are edges")
+      sub.add_option(
+             "--levels", options->levels,
+             "number of levels including the input mesh, or auto: add a (thinned) level "
+             "while it has fewer nodes than the previous one, its largest cluster keeps "
+             ">= 16 nodes, all coarse levels together have at most 2x the edges of level 0, "
+             "and at most 25% of the node pairs inside its clusters are edges")
           ->default_val("auto");
       sub.add_option("--thinning", options->thinning,
                      "coarse levels: on = keep each node's nearest and farthest A^2 neighbour "

@@ -2,6 +2,7 @@
 // [--steps S] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
+#include "preprocess/multilevel_graph.hpp"
 
 namespace {
 
@@ -17,7 +18,7 @@ BSMS_COMMAND(
       sub.add_option("--seeding", r->seeding,
                      "seeding of the multilevel graphs at test time (default: the training "
                      "seeding)")
-          ->check(CLI::IsMember({"minave", "closecenter", "random"}));
+          ->check(CLI::IsMember(bsms::seeding_names()));
       sub.add_option("--out", r->out, "output folder (default RUN/rollout)");
       sub.add_option("--trajectories", r->max_trajectories, "roll out at most K (0 = all)")
           ->check(CLI::NonNegativeNumber);

@@ -1,5 +1,6 @@
 #include "core/runtime.hpp"
 
+#include <dlfcn.h>
 #include <malloc.h>
 #include <omp.h>
 #include <sys/resource.h>
@@ -24,6 +25,13 @@ int set_num_threads(int requested) {
   const int threads = requested <= 0 ? hardware_threads() : requested;
   omp_set_num_threads(threads);
   return threads;
+}
+
+bool single_threaded_blas() {
+  using SetThreads = void (*)(int);
+  auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+  if (set != nullptr) set(1);
+  return set != nullptr;
 }
 
 void ensure_omp_wait_policy(char** argv) {

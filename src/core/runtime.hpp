@@ -12,6 +12,12 @@ namespace bsms {
 int set_num_threads(int requested);
 int hardware_threads();
 
+// Makes OpenBLAS single-threaded when the process has loaded it (looked up with dlsym, so any
+// BLAS or none may be linked): the LibTorch layer (models/graph_ops.hpp configure_threads) splits
+// GEMMs over OpenMP's passive pool instead, and a second pool of spinning BLAS threads would
+// compete with it for the cores. Returns whether OpenBLAS was found.
+bool single_threaded_blas();
+
 // Keeps large freed blocks in the process instead of returning them to the system (glibc:
 // mmap threshold 256 MiB, trim threshold 1 GiB). Training allocates and frees the same large
 // tensors every step; without this, each step maps and unmaps them again (measured: 20% of the

@@ -54,8 +54,12 @@ int auto_levels(const TrajectoryMesh& mesh, Seeding seeding) {
 }
 
 GraphStore::GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs,
-                       uint64_t seed)
-    : seeding_(seeding), levels_(levels), seed_(seed), cache_dirs_(std::move(cache_dirs)) {
+                       uint64_t seed, bool require_write)
+    : seeding_(seeding),
+      levels_(levels),
+      seed_(seed),
+      cache_dirs_(std::move(cache_dirs)),
+      require_write_(require_write) {
   if (levels_ < 1) throw InputError("graph levels must be >= 1");
 }
 
@@ -77,7 +81,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
       MultilevelGraph cached = read_multilevel_graph(path);
       if (cached.num_levels() == levels_ && cached.levels[0].num_nodes() == mesh.num_nodes()) {
         entry->multilevel = std::move(cached);
-        loaded = true;
+        entry->from_cache = loaded = true;
         break;
       }
       problem = "holds " + std::to_string(cached.num_levels()) + " levels of " +
@@ -107,6 +111,8 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
         if (failure.empty()) failure = e.what();
       }
     }
+    if (!failure.empty() && require_write_)
+      throw IoError("cannot write the multilevel graph " + name + ": " + failure);
     if (!failure.empty() && !warned_write_) {
       warned_write_ = true;
       std::cerr << "bsms: warning: graphs are kept in memory only, no cache folder took them ("

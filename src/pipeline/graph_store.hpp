@@ -15,12 +15,16 @@ namespace bsms {
 struct MeshGraphs {
   std::string key;              // hash of the mesh topology (cells and node count)
   MultilevelGraph multilevel;   // exactly `levels` levels
+  bool from_cache = false;      // read from a cache folder rather than built
   GraphHierarchy hierarchy;     // tensors of `multilevel`, mesh edges only
   RowMatrixXd mesh_pos;         // [N, dim] reference positions
   double mean_edge_length = 0;  // over mesh edges, in mesh_pos units
 };
 
-// 64-bit FNV-1a hash of a mesh's topology, as 16 hex digits.
+// 64-bit hash of a mesh's topology (node count, cell size, cell node ids; byte-wise FNV-1a
+// steps with FNV's 64-bit prime, but the offset basis 1469598103934665603, a digit short of FNV's
+// 14695981039346656037: kept as it is, since cache file names on disk are built from it), as 16
+// hex digits.
 std::string topology_key(const TrajectoryMesh& mesh);
 
 class GraphStore {
@@ -28,8 +32,10 @@ class GraphStore {
   // `levels` >= 1 is the exact level count of every graph; `cache_dirs` are tried in order.
   // `seed`: random seeding's generator seed. A cache entry that cannot be read, or that does not
   // match, is rebuilt with a one-line warning; when no folder takes the new entry, a one-line
-  // warning says the graph stays in memory only.
-  GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs, uint64_t seed = 0);
+  // warning says the graph stays in memory only, unless `require_write` (`bsms preprocess
+  // --data`, whose product is the cache): then that is an IoError.
+  GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs, uint64_t seed = 0,
+             bool require_write = false);
   const MeshGraphs& get(const TrajectoryMesh& mesh);
   int levels() const { return levels_; }
 
@@ -38,6 +44,7 @@ class GraphStore {
   int levels_;
   uint64_t seed_;
   std::vector<std::string> cache_dirs_;
+  bool require_write_;
   bool warned_write_ = false;  // the in-memory-only warning is said once
   std::map<std::string, std::unique_ptr<MeshGraphs>> graphs_;
 };

@@ -11,6 +11,8 @@
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
+#include "pipeline/number_format.hpp"
+#include "pipeline/plotting.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/run_files.hpp"
 
@@ -24,19 +26,13 @@ struct RunInfo {
 };
 
 RunInfo run_info(const std::string& dir) {
-  const fs::path file = fs::path(dir) / "config.json";
-  if (!fs::exists(file))
-    throw InputError(dir + ": not a run folder (no config.json; train first with bsms train)");
-  const Json saved = load_json_file(file.string());
-  const Json config = saved.value("config", Json::object());
-  const Json model = config.value("model", Json::object());
+  const RunFolder run = RunFolder::open(dir);
   RunInfo r;
   r.dir = dir;
-  r.model = model.value("type", std::string("?"));
-  r.seeding = model.value("seeding", std::string("minave"));
-  r.data = config.value("data", std::string());
-  if (r.data.empty()) throw InputError(file.string() + ": config.data is missing");
-  r.label = fs::path(dir).filename().string() + " (" + r.model + ")";
+  r.model = run.config.model.type;
+  r.seeding = to_string(run.config.model.seeding);
+  r.data = run.config.data;
+  r.label = run.label();
   return r;
 }
 
@@ -109,13 +105,6 @@ double rmse(const Json& metrics, const char* key) {
   return v["world_pos"].get<double>();
 }
 
-std::string num(double v, int precision = 3, bool scientific = true) {
-  if (!std::isfinite(v)) return "–";
-  std::ostringstream s;
-  s << (scientific ? std::scientific : std::fixed) << std::setprecision(precision) << v;
-  return s.str();
-}
-
 struct Curve {
   std::string label;
   std::vector<double> values;  // per predicted step (step = index + 1)
@@ -134,10 +123,9 @@ void plot_curves(const fs::path& plots, const std::string& name, const std::stri
                  const std::string& ylabel, bool logy, const std::vector<Curve>& curves,
                  const std::vector<std::pair<double, std::string>>& vlines = {}) {
   std::ostringstream g;
-  g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-    << gnuplot_quoted((plots / (name + ".png")).string()) << "\nset title " << gnuplot_quoted(title)
-    << "\nset xlabel 'predicted step'\nset ylabel " << gnuplot_quoted(ylabel)
-    << "\nset key left top\nset grid\n";
+  g << gnuplot_png_preamble((plots / (name + ".png")).string()) << "set title "
+    << gnuplot_quoted(title) << "\nset xlabel 'predicted step'\nset ylabel "
+    << gnuplot_quoted(ylabel) << "\nset key left top\nset grid\n";
   if (logy) g << "set logscale y\n";
   for (size_t i = 0; i < vlines.size(); ++i)
     g << "set arrow " << i + 1 << " from " << vlines[i].first << ", graph 0 to " << vlines[i].first
@@ -159,8 +147,7 @@ void plot_curves(const fs::path& plots, const std::string& name, const std::stri
   }
   g << '\n';
   const fs::path script = plots / (name + ".gp");
-  write_text_atomic(script.string(), g.str());
-  run_gnuplot(script.string());
+  draw_plot(script.string(), g.str());
 }
 
 // Last predicted frame of the first trajectory of a rollout file: ground truth and prediction.
@@ -179,16 +166,15 @@ void plot_final_frame(const std::string& rollout_h5, const fs::path& plots, cons
   write_text_atomic((plots / (name + "_pred.dat")).string(), pd.str());
   write_text_atomic((plots / (name + "_truth.dat")).string(), td.str());
   std::ostringstream g;
-  g << "set terminal pngcairo size 800,800 font ',11' noenhanced\nset output "
-    << gnuplot_quoted((plots / (name + ".png")).string()) << "\nset title " << gnuplot_quoted(title)
+  g << gnuplot_png_preamble((plots / (name + ".png")).string(), 800, 800) << "set title "
+    << gnuplot_quoted(title)
     << "\nset size ratio -1\nset key outside bottom center horizontal\nset grid\nplot "
     << gnuplot_quoted((plots / (name + "_truth.dat")).string())
     << " using 1:2 with points pt 7 ps 0.5 lc rgb 'gray60' title 'ground truth (UMLS-MPM)', "
     << gnuplot_quoted((plots / (name + "_pred.dat")).string())
     << " using 1:2 with points pt 7 ps 0.3 lc rgb '#d62728' title 'prediction'\n";
   const fs::path script = plots / (name + ".gp");
-  write_text_atomic(script.string(), g.str());
-  run_gnuplot(script.string());
+  draw_plot(script.string(), g.str());
 }
 
 fs::path make_out(const HardCaseRequest& request) {
@@ -227,9 +213,10 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
         static_cast<double>(large.min_nodes) / static_cast<double>(train.max_nodes);
     if (ratio < min_ratio)
       throw InputError(data + ": its smallest mesh has " + std::to_string(large.min_nodes) +
-                       " nodes, only " + num(ratio, 2, false) + "x the largest training mesh of " +
-                       run.dir + " (" + std::to_string(train.max_nodes) +
-                       "); expected >= " + num(min_ratio, 1, false) + "x");
+                       " nodes, only " + format_number(ratio, 2, Notation::kFixed) +
+                       "x the largest training mesh of " + run.dir + " (" +
+                       std::to_string(train.max_nodes) +
+                       "); expected >= " + format_number(min_ratio, 1, Notation::kFixed) + "x");
     const Json own = run_rollout(request, run, run.data, "", "own");
     const Json big = run_rollout(request, run, data, "", "large");
     per_run.push_back({{"run", run.dir},
@@ -242,11 +229,14 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
       const bool is_big = m == &big;
       table << "| " << run.label << " | "
             << (is_big ? "zero-shot, larger meshes" : "own test split (training sizes)") << " | "
-            << num((*m)["num_nodes_mean"].get<double>(), 0, false) << " | "
-            << num(rmse(*m, "rmse_1")) << " | " << num(rmse(*m, "rmse_50")) << " | "
-            << num(rmse(*m, "rmse_all")) << " | " << num(rmse_constant_velocity(*m)) << " | "
-            << num((*m)["infer_ms_per_step"].get<double>(), 1, false) << " | "
-            << num((*m)["inverted_cells_max"].get<double>(), 4, false) << " |\n";
+            << format_number((*m)["num_nodes_mean"].get<double>(), 0, Notation::kFixed) << " | "
+            << format_number(rmse(*m, "rmse_1"), 3, Notation::kScientific) << " | "
+            << format_number(rmse(*m, "rmse_50"), 3, Notation::kScientific) << " | "
+            << format_number(rmse(*m, "rmse_all"), 3, Notation::kScientific) << " | "
+            << format_number(rmse_constant_velocity(*m), 3, Notation::kScientific) << " | "
+            << format_number((*m)["infer_ms_per_step"].get<double>(), 1, Notation::kFixed) << " | "
+            << format_number((*m)["inverted_cells_max"].get<double>(), 4, Notation::kFixed)
+            << " |\n";
       curves.push_back({run.label + (is_big ? ", larger meshes (zero-shot)" : ", own test split"),
                         to_vector((*m)["rmse_per_step"]["world_pos"]),
                         is_big ? "lines lw 2" : "lines lw 2 dt 2"});
@@ -271,7 +261,7 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
      << "Models trained on meshes of at most " << train_max << " nodes, rolled out without "
      << "retraining on `" << data << "` (" << large.trajectories << " trajectories, "
      << large.min_nodes << "–" << large.max_nodes << " nodes; the smallest is "
-     << num(result["size_ratio_min"].get<double>(), 1, false)
+     << format_number(result["size_ratio_min"].get<double>(), 1, Notation::kFixed)
      << "× the largest training mesh). The multilevel graphs of the new meshes are built on "
         "first use with the run's seeding and level count.\n\n"
      << table.str() << "\n![zero-shot RMSE](plots/zero_shot_rmse.png)\n\n"
@@ -281,8 +271,9 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
     const double a = rmse(r["in_distribution"], "rmse_all");
     const double b = rmse(r["zero_shot"], "rmse_all");
     md << "- " << r["run"].get<std::string>() << " (" << r["model"].get<std::string>()
-       << "): RMSE-all " << num(b) << " m on the larger meshes against " << num(a)
-       << " m on its own test split (" << num(b / a, 2, false) << "×).\n";
+       << "): RMSE-all " << format_number(b, 3, Notation::kScientific)
+       << " m on the larger meshes against " << format_number(a, 3, Notation::kScientific)
+       << " m on its own test split (" << format_number(b / a, 2, Notation::kFixed) << "×).\n";
   }
   write_text_atomic((out / "zero_shot.md").string(), md.str());
   write_json_atomic((out / "metrics.json").string(), result);
@@ -312,7 +303,7 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
       continue;
     }
     Json rows = Json::object();
-    for (const std::string seeding : {"minave", "closecenter", "random"})
+    for (const std::string& seeding : seeding_names())
       rows[seeding] =
           run_rollout(request, run, data.empty() ? run.data : data, seeding, "seeding-" + seeding);
     const Json& base = rows[run.seeding];
@@ -320,16 +311,19 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
        << "| Seeding @ test | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Ratio 1-step | Ratio "
           "50-step | Ratio rollout |\n|---|---|---|---|---|---|---|\n";
     Json ratios = Json::object();
-    for (const std::string seeding : {"minave", "closecenter", "random"}) {
+    for (const std::string& seeding : seeding_names()) {
       const Json& m = rows[seeding];
       const double r1 = rmse(m, "rmse_1") / rmse(base, "rmse_1");
       const double r50 = rmse(m, "rmse_50") / rmse(base, "rmse_50");
       const double rall = rmse(m, "rmse_all") / rmse(base, "rmse_all");
       ratios[seeding] = {{"rmse_1", r1}, {"rmse_50", r50}, {"rmse_all", rall}};
       md << "| " << seeding << (seeding == run.seeding ? " (training)" : "") << " | "
-         << num(rmse(m, "rmse_1")) << " | " << num(rmse(m, "rmse_50")) << " | "
-         << num(rmse(m, "rmse_all")) << " | " << num(r1, 2, false) << " | " << num(r50, 2, false)
-         << " | " << num(rall, 2, false) << " |\n";
+         << format_number(rmse(m, "rmse_1"), 3, Notation::kScientific) << " | "
+         << format_number(rmse(m, "rmse_50"), 3, Notation::kScientific) << " | "
+         << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
+         << format_number(r1, 2, Notation::kFixed) << " | "
+         << format_number(r50, 2, Notation::kFixed) << " | "
+         << format_number(rall, 2, Notation::kFixed) << " |\n";
       curves.push_back({run.label + ", " + seeding + (seeding == run.seeding ? " (training)" : ""),
                         to_vector(m["rmse_per_step"]["world_pos"]),
                         seeding == run.seeding ? "lines lw 3" : "lines lw 2"});
@@ -337,7 +331,8 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
     double worst = 0;
     for (const auto& [name, r] : ratios.items())
       if (name != run.seeding) worst = std::max(worst, r["rmse_all"].get<double>());
-    md << "\nLargest rollout ratio for another seeding: " << num(worst, 2, false) << "×.\n\n";
+    md << "\nLargest rollout ratio for another seeding: "
+       << format_number(worst, 2, Notation::kFixed) << "×.\n\n";
     per_run.push_back(
         {{"run", run.dir}, {"trained_with", run.seeding}, {"rollouts", rows}, {"ratios", ratios}});
   }
@@ -385,11 +380,12 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     for (size_t k : {1, 2, 5, 10}) {
       const double v = rmse_at(m, k * horizon);
       row["rmse_at"][std::to_string(k) + "H"] = std::isfinite(v) ? Json(v) : Json(nullptr);
-      table << " | " << num(v);
+      table << " | " << format_number(v, 3, Notation::kScientific);
     }
-    table << " | " << num(rmse(m, "rmse_all")) << " | " << num(rmse_constant_velocity(m)) << " | "
-          << num(m["inverted_cells_max"].get<double>(), 4, false) << " | " << m["diverged"].size()
-          << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
+    table << " | " << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
+          << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
+          << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed) << " | "
+          << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
     rmse_curves.push_back({run.label, to_vector(m["rmse_per_step"]["world_pos"])});
     inverted_curves.push_back({run.label, to_vector(m["inverted_cells_per_step"])});
     per_run.push_back(row);
@@ -430,11 +426,14 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     for (const auto& run : runs) {
       const Json m = run_rollout(request, run, hard_data, "", "hard");
       const Json own = run_rollout(request, run, run.data, "", "own");
-      hard_table << "| " << run.label << " | " << num(rmse(m, "rmse_1")) << " | "
-                 << num(rmse(m, "rmse_50")) << " | " << num(rmse(m, "rmse_all")) << " | "
-                 << num(rmse_constant_velocity(m)) << " | " << num(rmse(own, "rmse_all")) << " | "
-                 << num(m["inverted_cells_max"].get<double>(), 4, false) << " | "
-                 << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>()
+      hard_table << "| " << run.label << " | "
+                 << format_number(rmse(m, "rmse_1"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(m, "rmse_50"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(own, "rmse_all"), 3, Notation::kScientific) << " | "
+                 << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed)
+                 << " | " << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>()
                  << " |\n";
       hard_curves.push_back(
           {run.label + ", hard scenes", to_vector(m["rmse_per_step"]["world_pos"])});

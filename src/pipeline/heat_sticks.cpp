@@ -19,6 +19,8 @@
 #include "models/graph_ops.hpp"
 #include "models/proximity_hierarchy.hpp"
 #include "pipeline/fit.hpp"
+#include "pipeline/number_format.hpp"
+#include "pipeline/plotting.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/train_config.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -79,30 +81,10 @@ struct RmsAccumulator {
   double value() const { return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0; }
 };
 
-std::string number(double v, int precision = 3) {
-  std::ostringstream s;
-  s << std::setprecision(precision) << v;
-  return s.str();
-}
-
-std::string sci(double v) {
-  std::ostringstream s;
-  s << std::scientific << std::setprecision(2) << v;
-  return s.str();
-}
-
-std::string sci(const Json& v) {
-  return sci(v.get<double>());
-}
-
 std::string joined(const std::vector<int64_t>& values) {
   std::string out;
   for (size_t i = 0; i < values.size(); ++i) out += (i ? " / " : "") + std::to_string(values[i]);
   return out;
-}
-
-bool gnuplot_available() {
-  return std::system("command -v gnuplot >/dev/null 2>&1") == 0;
 }
 
 struct TrainResult {
@@ -177,9 +159,9 @@ struct TestCase {
 std::string plot_script(const HeatSticksOptions& o, const fs::path& plots,
                         const std::vector<TestCase>& cases, double gap_mid) {
   std::ostringstream g;
-  g << "set terminal pngcairo size 1400,1000 font ',11' noenhanced\nset output "
-    << gnuplot_quoted((plots / "heat_sticks.png").string()) << "\nset multiplot layout 2,2 title "
-    << "'Steady 1-D heat on two sticks with a gap of " << number(o.gap)
+  g << gnuplot_png_preamble((plots / "heat_sticks.png").string(), 1400, 1000)
+    << "set multiplot layout 2,2 title "
+    << "'Steady 1-D heat on two sticks with a gap of " << format_number(o.gap)
     << " dx (first test draw): exact solution, BSMS-GNN with bi-stride and with proximity "
        "coarsening'\n"
     << "set grid\nset xlabel 'x'\nset ylabel 'temperature T'\nset key top left box opaque\n"
@@ -238,7 +220,8 @@ void validate(const HeatSticksOptions& o) {
                      " levels keep 2 or more nodes on the coarsest bi-stride level");
   }
   if (!(o.gap > 0.0) || !std::isfinite(o.gap)) {
-    throw InputError("--gap (in units of dx) must be a positive number, got " + number(o.gap));
+    throw InputError("--gap (in units of dx) must be a positive number, got " +
+                     format_number(o.gap));
   }
   if (o.latent < 1 || o.latent > kMaxLatent) {
     throw InputError("--latent must be in [1, " + std::to_string(kMaxLatent) + "], got " +
@@ -249,8 +232,8 @@ void validate(const HeatSticksOptions& o) {
     throw InputError("--draws must be >= 1, got " + std::to_string(o.test_draws));
   }
   if (!(o.lr > 0.0) || !(o.lr_final > 0.0) || !std::isfinite(o.lr) || !std::isfinite(o.lr_final)) {
-    throw InputError("learning rates must be positive, got " + number(o.lr) + " and " +
-                     number(o.lr_final));
+    throw InputError("learning rates must be positive, got " + format_number(o.lr) + " and " +
+                     format_number(o.lr_final));
   }
 }
 
@@ -537,8 +520,7 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
   }
 
   // --- plot: the four combinations, first draw
-  const bool plotted = gnuplot_available();
-  if (plotted) {
+  {
     for (const auto& t : cases) {
       if (t.draw != 0) continue;
       std::ostringstream dat;
@@ -551,10 +533,9 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
           (plots / ("heat_sticks_" + std::string(kCombos[t.combo].name) + ".dat")).string(),
           dat.str());
     }
-    const fs::path script = plots / "heat_sticks.gp";
-    write_text_atomic(script.string(), plot_script(o, plots, cases, gap_mid));
-    run_gnuplot(script.string());
   }
+  const bool plotted =
+      draw_plot((plots / "heat_sticks.gp").string(), plot_script(o, plots, cases, gap_mid));
   metrics["plot"] = plotted ? Json("plots/heat_sticks.png") : Json(nullptr);
   metrics["wall_s"] = total.seconds();
 
@@ -564,22 +545,24 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
   std::ostringstream md;
   md << "## Spatial proximity failure case: steady heat on two sticks (thesis Fig. 4.6)\n\n"
      << "Steady 1-D heat conduction on sticks of length 1 with " << o.nodes
-     << " nodes (dx = " << number(dx) << "): temperature T_d at one end, heat flux q at the other, "
+     << " nodes (dx = " << format_number(dx)
+     << "): temperature T_d at one end, heat flux q at the other, "
      << "exact solution T(s) = T_d + q s (s = distance from the Dirichlet end). Inputs per node: "
      << "(is Dirichlet, is flux, value); output T. The same BSMS-GNN network (" << o.levels
      << " levels, latent " << o.latent << ", same initial weights and training data) is trained "
      << "for " << o.steps << " steps (batches of " << o.batch << " single sticks at a random "
-     << "offset, both orientations, T_d and q uniform in [-1, 1], Adam " << number(o.lr) << " to "
-     << number(o.lr_final) << ") with two coarsenings: **bi-stride** (CloseCenter seeding) and "
-     << "**proximity** (MS-GNN-GRID style: grid cells of " << number(kProximityCellDx)
+     << "offset, both orientations, T_d and q uniform in [-1, 1], Adam " << format_number(o.lr)
+     << " to " << format_number(o.lr_final)
+     << ") with two coarsenings: **bi-stride** (CloseCenter seeding) and "
+     << "**proximity** (MS-GNN-GRID style: grid cells of " << format_number(kProximityCellDx)
      << " dx doubling per level, edges between neighbouring cells, mean down / broadcast up). "
-     << "Test: stick A on [0, 1] and stick B on [1 + " << number(o.gap) << " dx, 2 + "
-     << number(o.gap) << " dx], no heat crosses the gap, for the 4 orientation combinations "
+     << "Test: stick A on [0, 1] and stick B on [1 + " << format_number(o.gap) << " dx, 2 + "
+     << format_number(o.gap) << " dx], no heat crosses the gap, for the 4 orientation combinations "
      << "(D = Dirichlet end, F = flux end, - = gap) x " << o.test_draws << " draws of T_d and q. "
      << "\"Alone\": each test stick evaluated on its own graph; \"near gap\": the "
-     << std::count(near_gap.begin(), near_gap.end(), 1) << " nodes within " << number(kNearGapDx)
-     << " dx of the gap. " << threads << " thread(s), total "
-     << number(metrics["wall_s"].get<double>()) << " s.\n\n"
+     << std::count(near_gap.begin(), near_gap.end(), 1) << " nodes within "
+     << format_number(kNearGapDx) << " dx of the gap. " << threads << " thread(s), total "
+     << format_number(metrics["wall_s"].get<double>()) << " s.\n\n"
      << "| coarsening | train RMSE | RMSE alone | RMSE two sticks | near gap alone | near gap two "
         "sticks |";
   for (const auto& c : kCombos) md << ' ' << c.name << " |";
@@ -590,24 +573,23 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
   md << "---|---|---|\n";
   for (const auto& spec : kModels) {
     const Json& r = metrics["models"][spec.key];
-    md << "| " << spec.label << " | " << sci(r["train_rmse_final"]) << " | " << sci(r["rmse_alone"])
-       << " | " << sci(r["rmse_pair"]) << " | " << sci(r["rmse_alone_near_gap"]) << " | "
-       << sci(r["rmse_pair_near_gap"]) << " |";
-    for (const auto& c : kCombos) md << ' ' << sci(r["rmse_pair_by_combo"][c.name]) << " |";
-    md << ' ' << sci(r["max_abs_pair_minus_alone"]) << " | "
+    md << "| " << spec.label << " | "
+       << format_number(r["train_rmse_final"], 2, Notation::kScientific) << " | "
+       << format_number(r["rmse_alone"], 2, Notation::kScientific) << " | "
+       << format_number(r["rmse_pair"], 2, Notation::kScientific) << " | "
+       << format_number(r["rmse_alone_near_gap"], 2, Notation::kScientific) << " | "
+       << format_number(r["rmse_pair_near_gap"], 2, Notation::kScientific) << " |";
+    for (const auto& c : kCombos)
+      md << ' ' << format_number(r["rmse_pair_by_combo"][c.name], 2, Notation::kScientific) << " |";
+    md << ' ' << format_number(r["max_abs_pair_minus_alone"], 2, Notation::kScientific) << " | "
        << joined(r["test_hierarchy"]["cross_gap_edges_per_level"].get<std::vector<int64_t>>())
-       << " | " << number(r["train_wall_s"].get<double>()) << " |\n";
+       << " | " << format_number(r["train_wall_s"].get<double>()) << " |\n";
   }
   // The reading, from the figures above.
   auto sum_of = [](const Json& r, const char* key) {
     int64_t sum = 0;
     for (const auto& n : r["test_hierarchy"][key]) sum += n.get<int64_t>();
     return sum;
-  };
-  auto fixed = [](double v) {
-    std::ostringstream s;
-    s << std::fixed << std::setprecision(2) << v;
-    return s.str();
   };
   const bool bs_apart =
       sum_of(bs, "cross_gap_edges_per_level") == 0 && sum_of(bs, "mixed_nodes_per_level") == 0;
@@ -621,19 +603,24 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
      << (bs_apart ? "stay separate at every level" : "are joined at some level") << ", and the "
      << "two-stick prediction "
      << (bs["max_abs_pair_minus_alone"].get<double>() < 1e-4 ? "equals" : "differs from")
-     << " the single-stick one (max difference " << sci(bs["max_abs_pair_minus_alone"])
-     << "; two-stick RMSE " << fixed(bs_growth) << "x the single-stick RMSE); proximity "
+     << " the single-stick one (max difference "
+     << format_number(bs["max_abs_pair_minus_alone"], 2, Notation::kScientific)
+     << "; two-stick RMSE " << format_number(bs_growth, 2, Notation::kFixed)
+     << "x the single-stick RMSE); proximity "
      << "coarsening " << (px_joined ? "joins" : "also keeps apart") << " the sticks (cross-gap "
      << "edges per level: "
      << joined(px["test_hierarchy"]["cross_gap_edges_per_level"].get<std::vector<int64_t>>())
      << "; nodes shared by both sticks: "
      << joined(px["test_hierarchy"]["mixed_nodes_per_level"].get<std::vector<int64_t>>())
-     << ") and its RMSE near the gap is " << fixed(ratio) << "x the bi-stride model's ("
-     << sci(px["rmse_pair_near_gap"]) << " vs " << sci(bs["rmse_pair_near_gap"]) << ", "
+     << ") and its RMSE near the gap is " << format_number(ratio, 2, Notation::kFixed)
+     << "x the bi-stride model's ("
+     << format_number(px["rmse_pair_near_gap"], 2, Notation::kScientific) << " vs "
+     << format_number(bs["rmse_pair_near_gap"], 2, Notation::kScientific) << ", "
      << (ratio >= 2.0  ? "markedly worse"
          : ratio > 1.2 ? "somewhat worse"
                        : "no clear difference")
-     << "; " << sci(px["rmse_alone_near_gap"]) << " for the same sticks evaluated alone).\n\n";
+     << "; " << format_number(px["rmse_alone_near_gap"], 2, Notation::kScientific)
+     << " for the same sticks evaluated alone).\n\n";
   if (plotted) {
     md << "![heat_sticks](plots/heat_sticks.png)\n\n";
   } else {

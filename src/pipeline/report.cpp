@@ -11,6 +11,8 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
+#include "pipeline/number_format.hpp"
+#include "pipeline/plotting.hpp"
 #include "pipeline/run_files.hpp"
 
 namespace bsms {
@@ -20,19 +22,8 @@ namespace {
 
 struct RunData {
   std::string dir, label;
-  Json metrics, config;
+  Json metrics;
 };
-
-std::string fmt(const Json& v, int precision = 3, bool scientific = false) {
-  if (v.is_null() || !v.is_number()) return "–";
-  std::ostringstream s;
-  if (scientific)
-    s << std::scientific;
-  else
-    s << std::fixed;
-  s << std::setprecision(precision) << v.get<double>();
-  return s.str();
-}
 
 const Json& field(const Json& m, const char* key, const char* sub) {
   static const Json null;
@@ -71,8 +62,6 @@ std::string write_report(const ReportRequest& request) {
     RunData r;
     r.dir = dir;
     r.metrics = load_json_file(metrics.string());
-    const fs::path config = fs::path(dir) / "config.json";
-    r.config = fs::exists(config) ? load_json_file(config.string()) : Json::object();
     r.label = fs::path(dir).filename().string() + " (" + r.metrics.value("model", "?") + ")";
     runs.push_back(std::move(r));
   }
@@ -114,8 +103,9 @@ std::string write_report(const ReportRequest& request) {
     std::ofstream speed(plots / "speed.dat");
     for (size_t r = 0; r < runs.size(); ++r) {
       const Json& m = runs[r].metrics;
-      speed << '"' << runs[r].label << "\" " << fmt(m["infer_ms_per_step"], 6) << ' '
-            << fmt(field(m, "rmse_all", primary_field(m)), 8) << '\n';
+      speed << '"' << runs[r].label << "\" "
+            << format_number(m["infer_ms_per_step"], 6, Notation::kFixed) << ' '
+            << format_number(field(m, "rmse_all", primary_field(m)), 8, Notation::kFixed) << '\n';
       if (m["solver_ms_per_frame"].is_number()) solver_ms = m["solver_ms_per_frame"].get<double>();
     }
     // The solver is the reference: error 0 by definition.
@@ -126,9 +116,8 @@ std::string write_report(const ReportRequest& request) {
   std::vector<std::string> images;
   {
     std::ostringstream g;
-    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << gnuplot_quoted((plots / "rmse_over_steps.png").string())
-      << "\nset title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
+    g << gnuplot_png_preamble((plots / "rmse_over_steps.png").string())
+      << "set title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
          "'predicted step'"
          "\nset ylabel 'RMSE (m)'\nset logscale y\nset key left top\nset grid\nplot ";
     for (size_t r = 0; r < runs.size(); ++r)
@@ -136,29 +125,23 @@ std::string write_report(const ReportRequest& request) {
         << gnuplot_quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
         << " using 1:2 with lines lw 2 title " << gnuplot_quoted(runs[r].label);
     g << '\n';
-    write_text_atomic(plots / "rmse_over_steps.gp", g.str());
-    run_gnuplot(plots / "rmse_over_steps.gp");
-    images.push_back("rmse_over_steps.png");
+    if (draw_plot(plots / "rmse_over_steps.gp", g.str())) images.push_back("rmse_over_steps.png");
   }
   {
     std::ostringstream g;
-    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << gnuplot_quoted((plots / "speed_vs_error.png").string())
-      << "\nset title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
+    g << gnuplot_png_preamble((plots / "speed_vs_error.png").string())
+      << "set title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
          "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
          "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
          "0.1, graph 0.05\n";
     g << "plot " << gnuplot_quoted((plots / "speed.dat").string())
       << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle\n";
-    write_text_atomic(plots / "speed_vs_error.gp", g.str());
-    run_gnuplot(plots / "speed_vs_error.gp");
-    images.push_back("speed_vs_error.png");
+    if (draw_plot(plots / "speed_vs_error.gp", g.str())) images.push_back("speed_vs_error.png");
   }
   {
     std::ostringstream g;
-    g << "set terminal pngcairo size 900,560 font ',11' noenhanced\nset output "
-      << gnuplot_quoted((plots / "loss_vs_wall.png").string())
-      << "\nset title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
+    g << gnuplot_png_preamble((plots / "loss_vs_wall.png").string())
+      << "set title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
          "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
     // Training losses first, validation and its zero-prediction reference drawn over them.
     for (size_t r = 0; r < runs.size(); ++r)
@@ -175,9 +158,7 @@ std::string write_report(const ReportRequest& request) {
         << gnuplot_quoted(runs[r].label + " valid, predicting zero");
     }
     g << '\n';
-    write_text_atomic(plots / "loss_vs_wall.gp", g.str());
-    run_gnuplot(plots / "loss_vs_wall.gp");
-    images.push_back("loss_vs_wall.png");
+    if (draw_plot(plots / "loss_vs_wall.gp", g.str())) images.push_back("loss_vs_wall.png");
   }
   // Ground truth next to prediction: first trajectory of each run, three frames.
   for (size_t r = 0; r < runs.size(); ++r) {
@@ -190,9 +171,9 @@ std::string write_report(const ReportRequest& request) {
     const int64_t frames = d.num_frames(0);
     const std::vector<int64_t> shown = {0, frames / 2, frames - 1};
     std::ostringstream g;
-    g << "set terminal pngcairo size 1500,560 font ',11' noenhanced\nset output "
-      << gnuplot_quoted((plots / ("rollout_" + std::to_string(r) + ".png")).string())
-      << "\nset multiplot layout 1,3 title "
+    g << gnuplot_png_preamble((plots / ("rollout_" + std::to_string(r) + ".png")).string(), 1500,
+                              560)
+      << "set multiplot layout 1,3 title "
       << gnuplot_quoted("Ground truth (grey) and prediction (red): " + runs[r].label)
       << "\nset size ratio -1\nunset key\n";
     for (size_t k = 0; k < shown.size(); ++k) {
@@ -210,9 +191,7 @@ std::string write_report(const ReportRequest& request) {
     }
     g << "unset multiplot\n";
     const fs::path script = plots / ("rollout_" + std::to_string(r) + ".gp");
-    write_text_atomic(script, g.str());
-    run_gnuplot(script);
-    images.push_back("rollout_" + std::to_string(r) + ".png");
+    if (draw_plot(script, g.str())) images.push_back("rollout_" + std::to_string(r) + ".png");
   }
 
   // --- report.md
@@ -230,15 +209,18 @@ std::string write_report(const ReportRequest& request) {
     md << "| " << fs::path(r.dir).filename().string() << " | " << m.value("model", "?") << " | "
        << m.value("levels", 0) << " | "
        << (m.contains("train_steps") ? m["train_steps"].dump() : "–") << " | "
-       << fmt(m["train_ms_per_step"], 1) << " | " << fmt(m["infer_ms_per_step"], 2) << " | "
-       << fmt(m["solver_ms_per_frame"], 1) << " | " << fmt(m["speedup_vs_solver"], 3) << " | "
-       << fmt(field(m, "rmse_1", primary_field(m)), 2, true) << " | "
-       << fmt(field(m, "rmse_50", primary_field(m)), 2, true) << " | "
-       << fmt(field(m, "rmse_all", primary_field(m)), 2, true) << " | "
-       << fmt(m.value("inverted_cells_max", Json()), 4) << " | "
-       << fmt(m.value("peak_rss_mb_train", Json()), 0) << " | "
-       << fmt(m.value("peak_rss_mb_infer", Json()), 0) << " | "
-       << fmt(m.value("num_nodes_mean", Json()), 0) << " | " << m.value("threads", 0) << " |\n";
+       << format_number(m["train_ms_per_step"], 1, Notation::kFixed) << " | "
+       << format_number(m["infer_ms_per_step"], 2, Notation::kFixed) << " | "
+       << format_number(m["solver_ms_per_frame"], 1, Notation::kFixed) << " | "
+       << format_number(m["speedup_vs_solver"], 3, Notation::kFixed) << " | "
+       << format_number(field(m, "rmse_1", primary_field(m)), 2, Notation::kScientific) << " | "
+       << format_number(field(m, "rmse_50", primary_field(m)), 2, Notation::kScientific) << " | "
+       << format_number(field(m, "rmse_all", primary_field(m)), 2, Notation::kScientific) << " | "
+       << format_number(m.value("inverted_cells_max", Json()), 4, Notation::kFixed) << " | "
+       << format_number(m.value("peak_rss_mb_train", Json()), 0, Notation::kFixed) << " | "
+       << format_number(m.value("peak_rss_mb_infer", Json()), 0, Notation::kFixed) << " | "
+       << format_number(m.value("num_nodes_mean", Json()), 0, Notation::kFixed) << " | "
+       << m.value("threads", 0) << " |\n";
     if (m.contains("diverged") && !m["diverged"].empty())
       md << "\n_" << r.label << " diverged (non-finite prediction): " << m["diverged"].dump()
          << "_\n";
@@ -250,11 +232,11 @@ std::string write_report(const ReportRequest& request) {
     md << "\nEulerian runs: RMSE columns are the velocity's (per-field figures in each run's "
           "metrics.json). Reference without a model: holding the first frame on the solved nodes "
           "gives a velocity RMSE-all of "
-       << fmt(held, 2, true) << ".\n";
+       << format_number(held, 2, Notation::kScientific) << ".\n";
   if (cv.is_number())
     md << "\nReference without a model: extrapolating each trajectory's first velocity (zero "
           "acceleration) gives RMSE-all "
-       << fmt(cv, 2, true)
+       << format_number(cv, 2, Notation::kScientific)
        << " m. Inverted cells: the largest fraction of predicted cells turned inside out at a "
           "step (the solver never inverts one).\n";
   md << "\n";

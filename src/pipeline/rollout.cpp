@@ -143,8 +143,9 @@ Json rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
   std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
                                          (fs::path(run) / "multilevel").string()};
   for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  const std::string seeding = request.seeding.empty() ? config.model.seeding : request.seeding;
-  GraphStore store(parse_seeding(seeding), levels, cache_dirs);
+  const Seeding seeding =
+      request.seeding.empty() ? config.model.seeding : parse_seeding(request.seeding);
+  GraphStore store(seeding, levels, cache_dirs);
   const EulerianAdapter adapter(spec);
 
   const fs::path out_dir = rollout_out_dir(request);
@@ -284,7 +285,7 @@ Json rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
     per_step[outputs[k].name] = curve;
   }
   metrics["rmse_per_step"] = per_step;
-  metrics["seeding"] = seeding;
+  metrics["seeding"] = to_string(seeding);
   metrics["infer_ms_per_step"] = median(infer_ms);
   metrics["solver_ms_per_frame"] = nullptr;
   metrics["speedup_vs_solver"] = nullptr;
@@ -311,16 +312,11 @@ Json rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
 
 Json rollout(const RolloutRequest& request) {
   const std::string run = request.run;
-  const std::string config_file = run_config_path(run);
-  if (!fs::exists(config_file))
-    throw InputError(run + ": not a run folder (no config.json; train first with bsms train)");
-  const Json saved = load_json_file(config_file);
-  if (!saved.contains("config") || !saved.contains("features_resolved") ||
-      !saved.contains("levels"))
-    throw InputError(config_file + ": missing config, features_resolved or levels");
-  const TrainConfig config = parse_train_config(saved["config"], config_file);
-  const int levels = saved["levels"].get<int>();
-  const Json& features = saved["features_resolved"];
+  const RunFolder folder = RunFolder::open(run);
+  const std::string& config_file = folder.config_path;
+  const TrainConfig& config = folder.config;
+  const int levels = folder.levels;
+  const Json& features = folder.features_resolved;
   if (features.is_object() && features.value("kind", std::string()) == "eulerian")
     return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file),
                             levels);
@@ -348,8 +344,9 @@ Json rollout(const RolloutRequest& request) {
   std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
                                          (fs::path(run) / "multilevel").string()};
   for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  const std::string seeding = request.seeding.empty() ? config.model.seeding : request.seeding;
-  GraphStore store(parse_seeding(seeding), levels, cache_dirs);
+  const Seeding seeding =
+      request.seeding.empty() ? config.model.seeding : parse_seeding(request.seeding);
+  GraphStore store(seeding, levels, cache_dirs);
   LagrangianAdapter adapter(spec);
 
   const fs::path out_dir = rollout_out_dir(request);
@@ -463,7 +460,7 @@ Json rollout(const RolloutRequest& request) {
   }
   metrics["inverted_cells_per_step"] = inverted;
   metrics["inverted_cells_max"] = worst_inverted;
-  metrics["seeding"] = seeding;
+  metrics["seeding"] = to_string(seeding);
   metrics["infer_ms_per_step"] = median(infer_ms);
   const double solver_ms = solver_ms_per_frame.empty() ? -1.0 : median(solver_ms_per_frame);
   metrics["solver_ms_per_frame"] = solver_ms >= 0 ? Json(solver_ms) : Json(nullptr);

@@ -1,10 +1,11 @@
 #include "pipeline/run_files.hpp"
 
-#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "pipeline/trainer.hpp"
 
 namespace bsms {
 
@@ -28,16 +29,27 @@ void write_text_atomic(const std::string& path, const std::string& text) {
   out.commit();
 }
 
-std::string gnuplot_quoted(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("''") : std::string(1, c);
-  return q + "'";
+RunFolder RunFolder::open(const std::string& dir) {
+  RunFolder run;
+  run.dir = dir;
+  run.config_path = run_config_path(dir);
+  if (!std::filesystem::exists(run.config_path))
+    throw InputError(dir + ": not a run folder (no config.json; train first with bsms train)");
+  const Json saved = load_json_file(run.config_path);
+  for (const char* key : {"config", "features_resolved", "levels"})
+    if (!saved.contains(key))
+      throw InputError(run.config_path + ": key " + key + " is missing (written by bsms train)");
+  if (!saved["levels"].is_number_integer() || saved["levels"].get<int64_t>() < 1)
+    throw InputError(run.config_path + ": levels = " + saved["levels"].dump() +
+                     ", expected an integer >= 1");
+  run.config = parse_train_config(saved["config"], run.config_path);
+  run.levels = saved["levels"].get<int>();
+  run.features_resolved = saved["features_resolved"];
+  return run;
 }
 
-void run_gnuplot(const std::string& script) {
-  const std::string cmd = "gnuplot '" + script + "' 2>'" + script + ".log'";
-  if (std::system(cmd.c_str()) != 0)
-    throw IoError(script + ": gnuplot failed (see " + script + ".log)");
+std::string RunFolder::label() const {
+  return std::filesystem::path(dir).filename().string() + " (" + config.model.type + ")";
 }
 
 }  // namespace bsms

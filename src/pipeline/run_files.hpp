@@ -1,20 +1,29 @@
-// Small files of a run or report folder, written atomically, and plotting with gnuplot.
+// Small files of a run or report folder, written atomically.
 #pragma once
 
 #include <string>
 
 #include "core/config.hpp"
+#include "pipeline/train_config.hpp"
 
 namespace bsms {
 
 void write_json_atomic(const std::string& path, const Json& value);
 void write_text_atomic(const std::string& path, const std::string& text);
 
-// Runs gnuplot (a Debian package the Makefile installs) on a script file; its messages go to
-// SCRIPT.log and an IoError names the script when gnuplot fails.
-void run_gnuplot(const std::string& script);
+// A trained run's folder (`bsms train --out RUN`). RUN/config.json holds the validated training
+// config, the level count the model was built with and the features resolved from the training
+// data. This is the one reader of that file (rollout, report and the experiments use it): strict,
+// a missing folder, file or key is an InputError naming it.
+struct RunFolder {
+  std::string dir;
+  std::string config_path;  // RUN/config.json
+  TrainConfig config;
+  int levels = 0;
+  Json features_resolved;
 
-// A gnuplot single-quoted string (a quote inside is doubled).
-std::string gnuplot_quoted(const std::string& s);
+  static RunFolder open(const std::string& dir);
+  std::string label() const;  // "<folder name> (<model type>)", for tables and plot keys
+};
 
 }  // namespace bsms

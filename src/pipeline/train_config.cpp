@@ -37,10 +37,12 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
       require(c.model.levels >= 0 && c.model.levels <= 64, m.context("levels"),
               "\"auto\" or an integer in 1..64");
     }
-    c.model.seeding = m.opt<std::string>("seeding", c.model.seeding);
-    require(c.model.seeding == "minave" || c.model.seeding == "closecenter" ||
-                c.model.seeding == "random",
-            m.context("seeding"), "one of minave, closecenter, random");
+    const std::string seeding = m.opt<std::string>("seeding", to_string(c.model.seeding));
+    try {
+      c.model.seeding = parse_seeding(seeding);
+    } catch (const InputError&) {
+      require(false, m.context("seeding"), "one of minave, closecenter, random");
+    }
     c.model.message_passing_steps =
         m.opt<int>("message_passing_steps", c.model.message_passing_steps);
     require(c.model.message_passing_steps >= 1 && c.model.message_passing_steps <= 100,
@@ -128,7 +130,7 @@ Json to_json(const TrainConfig& c) {
           {{"type", c.model.type},
            {"latent", c.model.latent},
            {"levels", levels},
-           {"seeding", c.model.seeding},
+           {"seeding", to_string(c.model.seeding)},
            {"message_passing_steps", c.model.message_passing_steps}}},
          {"features",
           {{"contact_radius", contact},

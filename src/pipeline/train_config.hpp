@@ -6,15 +6,16 @@
 #include <vector>
 
 #include "core/config.hpp"
+#include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {
 
 struct ModelConfig {
   std::string type = "bsms";  // "bsms" | "mgn"
   int64_t latent = 128;
-  int levels = 0;                  // BSMS: total levels incl. the mesh; 0 = auto (from the mesh)
-  std::string seeding = "minave";  // seeding of the multilevel graphs
-  int message_passing_steps = 15;  // MeshGraphNets
+  int levels = 0;  // BSMS: total levels incl. the mesh; 0 = auto (from the mesh)
+  Seeding seeding = Seeding::kMinAve;  // seeding of the multilevel graphs
+  int message_passing_steps = 15;      // MeshGraphNets
 };
 
 struct FeatureConfig {

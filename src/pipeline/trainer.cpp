@@ -192,9 +192,8 @@ Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
   if (config.model.type == "mgn") {
     r.levels = 1;
   } else {
-    r.levels = config.model.levels > 0
-                   ? config.model.levels
-                   : auto_levels(train_data.mesh(0), parse_seeding(config.model.seeding));
+    r.levels = config.model.levels > 0 ? config.model.levels
+                                       : auto_levels(train_data.mesh(0), config.model.seeding);
   }
   if (r.eulerian) {
     EulerianSpec& e = r.eulerian_spec;
@@ -506,7 +505,7 @@ TrainResult train(const TrainRequest& request) {
     std::error_code ec;
     fs::create_directories(d, ec);
   }
-  GraphStore store(parse_seeding(config.model.seeding), resolved.levels, cache_dirs);
+  GraphStore store(config.model.seeding, resolved.levels, cache_dirs);
   auto simulator =
       std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
   torch::optim::Adam optimizer(simulator->parameters(),
