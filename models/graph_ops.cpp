@@ -497,7 +497,7 @@ struct SegmentSum : torch::autograd::Function<SegmentSum> {
 };
 
 // Sparse product with a transition matrix (down: D v) or its transpose (up: Dᵀ v).
-struct SparseTransfer : torch::autograd::Function<SparseTransfer> {
+struct SparseTransition : torch::autograd::Function<SparseTransition> {
   static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& v_in,
                                const LevelTransition& t, bool up) {
     auto v = checked_float(v_in, "v");
@@ -784,14 +784,14 @@ torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges) {
   return SegmentSum::apply(x, edges);
 }
 
-torch::Tensor transfer_down(const torch::Tensor& v, const LevelTransition& transition) {
-  RECORD_FUNCTION("bsms::transfer_down", std::vector<c10::IValue>());
-  return SparseTransfer::apply(v, transition, false);
+torch::Tensor transition_down(const torch::Tensor& v, const LevelTransition& transition) {
+  RECORD_FUNCTION("bsms::transition_down", std::vector<c10::IValue>());
+  return SparseTransition::apply(v, transition, false);
 }
 
-torch::Tensor transfer_up(const torch::Tensor& v, const LevelTransition& transition) {
-  RECORD_FUNCTION("bsms::transfer_up", std::vector<c10::IValue>());
-  return SparseTransfer::apply(v, transition, true);
+torch::Tensor transition_up(const torch::Tensor& v, const LevelTransition& transition) {
+  RECORD_FUNCTION("bsms::transition_up", std::vector<c10::IValue>());
+  return SparseTransition::apply(v, transition, true);
 }
 
 }  // namespace bsms

@@ -65,8 +65,8 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent, const torch::Tenso
 torch::Tensor segment_sum(const torch::Tensor& x, const EdgeIndex& edges);
 
 // Down transition: D v, v [N_fine, C] -> [N_coarse, C] (models/graph_tensors.hpp).
-torch::Tensor transfer_down(const torch::Tensor& v, const LevelTransition& transition);
+torch::Tensor transition_down(const torch::Tensor& v, const LevelTransition& transition);
 // Up transition: Dᵀ v, v [N_coarse, C] -> [N_fine, C].
-torch::Tensor transfer_up(const torch::Tensor& v, const LevelTransition& transition);
+torch::Tensor transition_up(const torch::Tensor& v, const LevelTransition& transition);
 
 }  // namespace bsms

@@ -140,7 +140,7 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
     torch::NoGradGuard no_grad;
     for (int k = 0; k + 1 < levels; ++k) {
       for (const auto& p : level_pos[k]) {
-        level_pos[k + 1].push_back(transfer_down(p.contiguous(), graph.transitions[k]));
+        level_pos[k + 1].push_back(transition_down(p.contiguous(), graph.transitions[k]));
       }
     }
   }
@@ -153,11 +153,11 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
   for (int k = 0; k + 1 < levels; ++k) {
     v = down_[k]->forward(v, feats[k], idx[k], mode_);
     skips.push_back(v);
-    v = transfer_down(v, graph.transitions[k]);
+    v = transition_down(v, graph.transitions[k]);
   }
   v = bottom_->forward(v, feats[levels - 1], idx[levels - 1], mode_);
   for (int k = levels - 2; k >= 0; --k) {
-    v = transfer_up(v, graph.transitions[k]);
+    v = transition_up(v, graph.transitions[k]);
     v = up_[k]->forward(v, feats[k], idx[k], mode_) + skips[k];
   }
   return run_mlp(*decoder_, v);

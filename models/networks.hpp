@@ -64,7 +64,7 @@ class GraphModel : public torch::nn::Module {
 
 // BSMS-GNN: encoder at level 0, one message passing per level on the way down, one at the bottom,
 // one per level on the way up with skip additions, decoder. Transitions are non-parametric
-// (models/graph_ops.hpp); coarse positions are the down-transferred finer positions.
+// (models/graph_ops.hpp); coarse positions are the finer positions moved down by the transition.
 class BsmsGnn : public GraphModel {
  public:
   explicit BsmsGnn(GraphModelOptions options);

@@ -91,7 +91,7 @@ bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64
          static_cast<double>(candidate.num_edges()) <= kAutoMaxDensity * pairs;
 }
 
-GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed, bool thin,
+GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t rng_seed, bool thin,
                          int64_t* clusters_out) {
   const ClusterNodes clusters = group_clusters(connected_components(fine.graph));
   if (clusters_out != nullptr) *clusters_out = clusters.count;
@@ -109,7 +109,7 @@ GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed,
       seeds = min_ave_seeds(fine.graph, clusters);
       break;
     case Seeding::kRandom:
-      seeds = random_seeds(clusters, seed);
+      seeds = random_seeds(clusters, rng_seed);
       break;
   }
   GraphLevel coarse;
@@ -167,9 +167,10 @@ MultilevelGraph build_multilevel_graph(CsrGraph graph, const RowMatrixXd& positi
     Stopwatch clock;
     int64_t clusters = 0;
     // Mix the level into the random seed so levels draw independently.
-    GraphLevel next = coarsen_level(out.levels.back(), options.seeding,
-                                    options.seed + 0x9E3779B97F4A7C15ull * static_cast<uint64_t>(k),
-                                    out.thinned, &clusters);
+    GraphLevel next =
+        coarsen_level(out.levels.back(), options.seeding,
+                      options.rng_seed + 0x9E3779B97F4A7C15ull * static_cast<uint64_t>(k),
+                      out.thinned, &clusters);
     if (automatic && !auto_accepts_level(next.graph, out.levels.back().num_nodes(), level0_edges,
                                          coarse_edges, out.thinned)) {
       break;

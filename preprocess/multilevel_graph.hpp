@@ -71,8 +71,8 @@ bool auto_accepts_level(const CsrGraph& candidate, int64_t previous_nodes, int64
 
 struct BuildOptions {
   Seeding seeding = Seeding::kCloseCenter;
-  int num_levels = 0;  // total levels including the input graph; 0 = auto (rule above)
-  uint64_t seed = 0;   // Seeding::kRandom only
+  int num_levels = 0;     // total levels including the input graph; 0 = auto (rule above)
+  uint64_t rng_seed = 0;  // Seeding::kRandom only
   Thinning thinning = Thinning::kAuto;
 };
 
@@ -98,10 +98,10 @@ MultilevelGraph build_multilevel_graph(const Mesh& mesh, const BuildOptions& opt
                                        std::vector<LevelReport>* report = nullptr);
 
 // One coarsening step: level k+1 from level k (graph, positions and node weights set).
-// `seed` is used by Seeding::kRandom only; `thin`: thin the coarse graph (needs positions);
+// `rng_seed` is used by Seeding::kRandom only; `thin`: thin the coarse graph (needs positions);
 // `clusters_out` receives the number of clusters of `fine`.
-GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t seed, bool thin = false,
-                         int64_t* clusters_out = nullptr);
+GraphLevel coarsen_level(const GraphLevel& fine, Seeding seeding, uint64_t rng_seed,
+                         bool thin = false, int64_t* clusters_out = nullptr);
 
 double mean_degree(const CsrGraph& graph);  // directed edges / nodes (0 for an empty graph)
 

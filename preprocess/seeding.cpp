@@ -466,9 +466,9 @@ std::vector<int64_t> distance_sum_lower_bounds(const CsrGraph& graph,
                            workspaces, local, blobs);
 }
 
-std::vector<int64_t> random_seeds(const ClusterNodes& clusters, uint64_t seed) {
+std::vector<int64_t> random_seeds(const ClusterNodes& clusters, uint64_t rng_seed) {
   std::vector<int64_t> seeds(clusters.count);
-  const uint64_t key = splitmix64(seed);
+  const uint64_t key = splitmix64(rng_seed);
   for (int64_t c = 0; c < clusters.count; ++c) {
     const uint64_t draw = splitmix64(key ^ splitmix64(static_cast<uint64_t>(c)));
     seeds[c] = clusters.begin(c)[draw % static_cast<uint64_t>(clusters.size(c))];

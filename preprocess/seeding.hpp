@@ -54,6 +54,6 @@ std::vector<int64_t> distance_sum_lower_bounds(const CsrGraph& graph,
 
 // Random: per cluster a node drawn from a counter-based generator keyed by (seed, cluster), so the
 // choice depends only on the seed and the cluster, never on threads.
-std::vector<int64_t> random_seeds(const ClusterNodes& clusters, uint64_t seed);
+std::vector<int64_t> random_seeds(const ClusterNodes& clusters, uint64_t rng_seed);
 
 }  // namespace bsms

@@ -4,8 +4,8 @@
 #include <memory>
 
 #include "cli/command.hpp"
-#include "pipeline/hard_cases.hpp"
-#include "pipeline/heat_sticks.hpp"
+#include "pipeline/experiments/hard_cases.hpp"
+#include "pipeline/experiments/heat_sticks.hpp"
 
 namespace {
 

@@ -123,7 +123,7 @@ void run_preprocess(const PreprocessOptions& options) {
   bsms::BuildOptions build;
   build.seeding = bsms::parse_seeding(options.seeding);
   build.num_levels = parse_levels(options.levels);
-  build.seed = options.seed;
+  build.rng_seed = options.seed;
   build.thinning = bsms::parse_thinning(options.thinning);
   check_output_path(options.out);
 

@@ -38,9 +38,9 @@ Mesh to_mesh(const TrajectoryMesh& m) {
 }
 
 std::string multilevel_cache_name(Seeding seeding, int levels, const std::string& key,
-                                  uint64_t seed) {
+                                  uint64_t rng_seed) {
   const std::string name = seeding == Seeding::kRandom
-                               ? to_string(seeding) + "-s" + std::to_string(seed)
+                               ? to_string(seeding) + "-s" + std::to_string(rng_seed)
                                : to_string(seeding);
   return name + "-L" + std::to_string(levels) + "-" + key + ".h5";
 }
@@ -54,10 +54,10 @@ int auto_levels(const TrajectoryMesh& mesh, Seeding seeding) {
 }
 
 GraphStore::GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs,
-                       uint64_t seed, bool require_write)
+                       uint64_t rng_seed, bool require_write)
     : seeding_(seeding),
       levels_(levels),
-      seed_(seed),
+      rng_seed_(rng_seed),
       cache_dirs_(std::move(cache_dirs)),
       require_write_(require_write) {
   if (levels_ < 1) throw InputError("graph levels must be >= 1");
@@ -71,7 +71,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
   entry->key = key;
   const Mesh core_mesh = to_mesh(mesh);
   entry->mesh_pos = core_mesh.points;
-  const std::string name = multilevel_cache_name(seeding_, levels_, key, seed_);
+  const std::string name = multilevel_cache_name(seeding_, levels_, key, rng_seed_);
   bool loaded = false;
   for (const auto& dir : cache_dirs_) {
     const std::string path = (fs::path(dir) / name).string();
@@ -98,7 +98,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
     BuildOptions options;
     options.seeding = seeding_;
     options.num_levels = levels_;
-    options.seed = seed_;
+    options.rng_seed = rng_seed_;
     entry->multilevel = build_multilevel_graph(core_mesh, options);
     std::string failure;
     for (const auto& dir : cache_dirs_) {

@@ -30,19 +30,19 @@ std::string topology_key(const TrajectoryMesh& mesh);
 class GraphStore {
  public:
   // `levels` >= 1 is the exact level count of every graph; `cache_dirs` are tried in order.
-  // `seed`: random seeding's generator seed. A cache entry that cannot be read, or that does not
-  // match, is rebuilt with a one-line warning; when no folder takes the new entry, a one-line
+  // `rng_seed`: random seeding's generator seed. A cache entry that cannot be read, or that does
+  // not match, is rebuilt with a one-line warning; when no folder takes the new entry, a one-line
   // warning says the graph stays in memory only, unless `require_write` (`bsms preprocess
   // --data`, whose product is the cache): then that is an IoError.
-  GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs, uint64_t seed = 0,
-             bool require_write = false);
+  GraphStore(Seeding seeding, int levels, std::vector<std::string> cache_dirs,
+             uint64_t rng_seed = 0, bool require_write = false);
   const MeshGraphs& get(const TrajectoryMesh& mesh);
   int levels() const { return levels_; }
 
  private:
   Seeding seeding_;
   int levels_;
-  uint64_t seed_;
+  uint64_t rng_seed_;
   std::vector<std::string> cache_dirs_;
   bool require_write_;
   bool warned_write_ = false;  // the in-memory-only warning is said once
@@ -53,7 +53,7 @@ class GraphStore {
 // for random seeding ("random-s<seed>-L..."), whose graphs differ by seed. Written by
 // `bsms preprocess --data` and by training on first use; read by training and rollout.
 std::string multilevel_cache_name(Seeding seeding, int levels, const std::string& key,
-                                  uint64_t seed = 0);
+                                  uint64_t rng_seed = 0);
 
 // The level count `--levels auto` chooses for a mesh (preprocess rule).
 int auto_levels(const TrajectoryMesh& mesh, Seeding seeding);

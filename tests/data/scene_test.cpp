@@ -34,12 +34,11 @@ std::string input_error(const std::string& path, const std::vector<std::string>&
 }
 
 TEST(Scene, EveryShippedSceneParsesAndBuilds) {
-  // Scenes of `bsms simulate`; dataset family files beside them are parsed by tests/generate.
+  // Scenes of `bsms simulate` (dataset families are in configs/families/, parsed by
+  // tests/generate).
   int count = 0;
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;
-    if (load_json_file(entry.path().string()).contains("family"))
-      continue;  // dataset families (generate)
     // Parsed and built (gmsh meshing, particles seeded at body nodes inside the background).
     try {
       const Scene scene = load_scene(entry.path().string());
@@ -101,7 +100,6 @@ TEST(Scene, HugeScenesAreRefusedBeforeMeshing) {
 TEST(Scene, SizeEstimatesMatchTheBuiltShippedScenes) {
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;
-    if (load_json_file(entry.path().string()).contains("family")) continue;
     const Scene scene = load_scene(entry.path().string());
     const SceneEstimate e = estimate_scene(scene);
     double particles = 0.0, nodes = 0.0;

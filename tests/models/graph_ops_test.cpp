@@ -228,11 +228,11 @@ TEST(Transitions, MatchDenseFormula) {
     auto pooled = torch::tensor(coarse.pooled, torch::kInt64);
     auto m = dense_weights(fine, coarse);
     auto v = torch::randn({fine.num_nodes(), 6}, torch::requires_grad());
-    auto down = transfer_down(v, hierarchy.transitions[k]);
+    auto down = transition_down(v, hierarchy.transitions[k]);
     expect_close(down, m.mm(v).index_select(0, pooled));
     auto u = torch::randn({coarse.num_nodes(), 6}, torch::requires_grad());
     auto unpooled = torch::zeros({fine.num_nodes(), 6}).index_copy(0, pooled, u);
-    auto up = transfer_up(u, hierarchy.transitions[k]);
+    auto up = transition_up(u, hierarchy.transitions[k]);
     expect_close(up, m.t().mm(unpooled));
     // Adjoint gradients: d(down)/dv = Dᵀ, d(up)/du = D.
     auto gd = torch::randn_like(down), gu = torch::randn_like(up);
@@ -252,11 +252,11 @@ TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
     const auto& t = hierarchy.transitions[k];
     auto ones = torch::full({t.fine_nodes, 3}, 2.5f);
     // Receiver weights sum to 1, so a constant field is reproduced on the coarse level.
-    expect_close(transfer_down(ones, t), torch::full({t.coarse_nodes, 3}, 2.5f));
+    expect_close(transition_down(ones, t), torch::full({t.coarse_nodes, 3}, 2.5f));
     // Up distributes each coarse value over its fine neighbours with weights summing to 1.
     auto u = torch::rand({t.coarse_nodes, 3});
-    expect_close(transfer_up(u, t).sum(0), u.sum(0));
-    expect_close(transfer_up(torch::full({t.coarse_nodes, 3}, 2.5f), t).sum(0),
+    expect_close(transition_up(u, t).sum(0), u.sum(0));
+    expect_close(transition_up(torch::full({t.coarse_nodes, 3}, 2.5f), t).sum(0),
                  torch::full({3}, 2.5f * t.coarse_nodes));
   }
 }
@@ -280,9 +280,9 @@ TEST(GraphHierarchy, MergeIsBlockDiagonal) {
             {segment_sum(x1.index_select(0, h1.edge_sets[k][0].senders), h1.edge_sets[k][0]),
              segment_sum(x2.index_select(0, h2.edge_sets[k][0].senders), h2.edge_sets[k][0])}));
     if (k < 2) {
-      expect_close(
-          transfer_down(x, merged.transitions[k]),
-          torch::cat({transfer_down(x1, h1.transitions[k]), transfer_down(x2, h2.transitions[k])}));
+      expect_close(transition_down(x, merged.transitions[k]),
+                   torch::cat({transition_down(x1, h1.transitions[k]),
+                               transition_down(x2, h2.transitions[k])}));
     }
   }
   auto h3 = make_hierarchy(testing::reference_multilevel(m2.graph, 2));

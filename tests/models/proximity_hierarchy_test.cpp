@@ -99,8 +99,8 @@ void expect_matches_brute_force(const torch::Tensor& positions, const GraphHiera
     }
 
     // The model's down-transferred positions are the member means.
-    auto down =
-        transfer_down(torch::tensor(pos, torch::kFloat64).reshape({n, dim}).to(torch::kFloat32), t);
+    auto down = transition_down(
+        torch::tensor(pos, torch::kFloat64).reshape({n, dim}).to(torch::kFloat32), t);
     auto down_pos = rows_of(down);
     for (size_t q = 0; q < coarse_pos.size(); ++q) EXPECT_NEAR(down_pos[q], coarse_pos[q], 1e-5);
 
@@ -135,7 +135,7 @@ TEST(ProximityHierarchy, HandMadeLineMatchesCellsByHand) {
   EXPECT_EQ(edge_pairs(h.edge_sets[0][0]), edge_pairs(EdgeIndex::from_pairs(chain_edges(6), 6)));
   EXPECT_EQ(edge_pairs(h.edge_sets[1][0]), (Pairs{{0, 1}, {1, 0}, {1, 2}, {2, 1}, {2, 3}, {3, 2}}));
   EXPECT_EQ(edge_pairs(h.edge_sets[2][0]), (Pairs{{0, 1}, {1, 0}, {1, 2}, {2, 1}}));
-  auto p1 = rows_of(transfer_down(x, h.transitions[0]));
+  auto p1 = rows_of(transition_down(x, h.transitions[0]));
   EXPECT_NEAR(p1[0], -0.1, 1e-6);
   EXPECT_NEAR(p1[1], 0.35 / 3.0, 1e-6);
   EXPECT_NEAR(p1[2], 0.9, 1e-6);
@@ -177,8 +177,8 @@ TEST(ProximityHierarchy, TransfersAndGradientsMatchDenseMatrices) {
     for (int64_t i = 0; i < t.fine_nodes; ++i) u[i][ucol[uoff[i]]] = 1.0;
     auto v = torch::randn({t.fine_nodes, 5}, torch::requires_grad());
     auto w = torch::randn({t.coarse_nodes, 5}, torch::requires_grad());
-    auto down = transfer_down(v, t);
-    auto up = transfer_up(w, t);
+    auto down = transition_down(v, t);
+    auto up = transition_up(w, t);
     EXPECT_TRUE(torch::allclose(down, d.mm(v), 1e-5, 1e-6));
     EXPECT_TRUE(torch::allclose(up, u.mm(w), 1e-5, 1e-6));
     auto gd = torch::randn_like(down), gu = torch::randn_like(up);
@@ -201,9 +201,9 @@ TEST(ProximityHierarchy, MergesAsABatch) {
   for (int k = 0; k < 2; ++k) {
     EXPECT_FALSE(merged.transitions[k].up_is_down_transpose);
     auto v = torch::randn({merged.num_nodes(k), 3});
-    auto expected = torch::cat({transfer_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k]),
-                                transfer_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k])});
-    EXPECT_TRUE(torch::allclose(transfer_down(v, merged.transitions[k]), expected));
+    auto expected = torch::cat({transition_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k]),
+                                transition_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k])});
+    EXPECT_TRUE(torch::allclose(transition_down(v, merged.transitions[k]), expected));
   }
 }
 

@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "core/error.hpp"
-#include "pipeline/hard_cases.hpp"
+#include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/trainer.hpp"
 #include "plate_data.hpp"

@@ -1,6 +1,6 @@
 // The heat-sticks experiment (thesis Fig. 4.6): the isolation property that makes bi-stride pooling
 // safe across a gap, checked without training, and a short end-to-end run.
-#include "pipeline/heat_sticks.hpp"
+#include "pipeline/experiments/heat_sticks.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>

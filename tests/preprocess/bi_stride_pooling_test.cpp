@@ -5,7 +5,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
-#include "preprocess/level_transfer.hpp"
+#include "preprocess/level_transition.hpp"
 #include "preprocess/multilevel_graph.hpp"
 #include "test_graphs.hpp"
 
@@ -104,7 +104,7 @@ TEST(MultilevelProperties, HoldOnRandomMeshesForEverySeeding) {
       BuildOptions options;
       options.seeding = seeding;
       options.num_levels = 6;
-      options.seed = 5;
+      options.rng_seed = 5;
       const MultilevelGraph ml = build_multilevel_graph(g.graph, g.positions, options);
       ASSERT_EQ(ml.num_levels(), 6);
       // Cluster label of every node of the current level, carried down through `pooled`.
@@ -151,7 +151,7 @@ TEST(MultilevelProperties, HoldOnRandomMeshesForEverySeeding) {
           }
         }
         const std::vector<double> constant(fine.num_nodes() * 2, 3.5);
-        const auto down = transfer_down(ml, k, constant, 2);
+        const auto down = transition_down(ml, k, constant, 2);
         for (int64_t r = 0; r < coarse.num_nodes(); ++r) {
           if (fine.graph.degree(coarse.pooled[r]) > 0) {
             ASSERT_NEAR(down[2 * r], 3.5, 1e-5);
@@ -188,7 +188,7 @@ TEST(LevelTransfer, MatchesDenseDefinition) {
     std::vector<double> fine_values(n), coarse_values(m);
     for (auto& v : fine_values) v = unit(rng);
     for (auto& v : coarse_values) v = unit(rng);
-    const auto down = transfer_down(ml, k, fine_values, 1);
+    const auto down = transition_down(ml, k, fine_values, 1);
     for (int64_t r = 0; r < m; ++r) {
       double expected = 0.0;
       for (int64_t i = 0; i < n; ++i) expected += c[i][coarse.pooled[r]] * fine_values[i];
@@ -196,15 +196,15 @@ TEST(LevelTransfer, MatchesDenseDefinition) {
     }
     std::vector<double> unpooled(n, 0.0);
     for (int64_t r = 0; r < m; ++r) unpooled[coarse.pooled[r]] = coarse_values[r];
-    const auto up = transfer_up(ml, k, coarse_values, 1);
+    const auto up = transition_up(ml, k, coarse_values, 1);
     for (int64_t i = 0; i < n; ++i) {
       double expected = 0.0;
       for (int64_t j = 0; j < n; ++j) expected += c[i][j] * unpooled[j];
       EXPECT_NEAR(up[i], expected, 1e-12);
     }
   }
-  EXPECT_THROW(transfer_down(ml, 0, std::vector<double>(1), 1), InputError);
-  EXPECT_THROW(transfer_up(ml, 1, std::vector<double>(3), 1), InputError);
+  EXPECT_THROW(transition_down(ml, 0, std::vector<double>(1), 1), InputError);
+  EXPECT_THROW(transition_up(ml, 1, std::vector<double>(3), 1), InputError);
 }
 
 }  // namespace

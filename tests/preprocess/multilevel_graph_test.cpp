@@ -37,7 +37,7 @@ TEST(BuildMultilevel, DeterministicAcrossRunsAndThreadCounts) {
       options.num_levels = 5;
       // Thinned hierarchies (CloseCenter) and exact ones (the others).
       if (seeding == Seeding::kCloseCenter) options.thinning = Thinning::kOn;
-      options.seed = 17;
+      options.rng_seed = 17;
       omp_set_num_threads(1);
       const MultilevelGraph one = build_multilevel_graph(g.graph, g.positions, options);
       omp_set_num_threads(2);

@@ -1,5 +1,5 @@
-// Hard cases: each either runs with a finite state or stops with a NumericalError that names the
-// step, the particle and the cause. No NaN may survive a step.
+// Solver stress tests: each either runs with a finite state or stops with a NumericalError that
+// names the step, the particle and the cause. No NaN may survive a step.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -40,7 +40,7 @@ void expect_named(const std::string& message) {
 const std::vector<std::string> kCoarseSquare = {"background.element_size=0.05",
                                                 "solver.end_time=0.2"};
 
-TEST(HardCases, ParticleLeavingTheMeshStopsWithItsName) {
+TEST(SolverStress, ParticleLeavingTheMeshStopsWithItsName) {
   auto sets = kCoarseSquare;
   sets.push_back("bodies.0.velocity={\"type\": \"uniform\", \"value\": [5.0, 0.0]}");
   MpmSolver<2> solver = make_solver(load_scene(scene_path("rotating_square.json"), sets));
@@ -50,7 +50,7 @@ TEST(HardCases, ParticleLeavingTheMeshStopsWithItsName) {
   EXPECT_NE(message.find("left the background mesh"), std::string::npos) << message;
 }
 
-TEST(HardCases, TimeStepFarAboveCflStopsOrStaysFinite) {
+TEST(SolverStress, TimeStepFarAboveCflStopsOrStaysFinite) {
   auto sets = kCoarseSquare;
   sets.push_back("solver.dt=0.005");  // ~40x the CFL step
   MpmSolver<2> solver = make_solver(load_scene(scene_path("rotating_square.json"), sets));
@@ -59,7 +59,7 @@ TEST(HardCases, TimeStepFarAboveCflStopsOrStaysFinite) {
   std::printf("dt 40x CFL: %s\n", message.empty() ? "finished, finite" : message.c_str());
 }
 
-TEST(HardCases, HighSpeedImpactOnAWallStopsOrStaysFinite) {
+TEST(SolverStress, HighSpeedImpactOnAWallStopsOrStaysFinite) {
   auto sets = kCoarseSquare;
   sets.push_back("bodies.0.velocity={\"type\": \"uniform\", \"value\": [-60.0, 0.0]}");
   sets.push_back("boundaries=[{\"group\": \"left\", \"type\": \"slip\"}]");
@@ -70,7 +70,7 @@ TEST(HardCases, HighSpeedImpactOnAWallStopsOrStaysFinite) {
   std::printf("impact at 60 m/s: %s\n", message.empty() ? "finished, finite" : message.c_str());
 }
 
-TEST(HardCases, SliverElementsStopOrStayFinite) {
+TEST(SolverStress, SliverElementsStopOrStayFinite) {
   // A structured mesh with one row of nodes squeezed onto its neighbours: slivers of aspect ~1e-3.
   const int n = 11;
   RowMatrixXd points(n * n, 2);
@@ -103,7 +103,7 @@ TEST(HardCases, SliverElementsStopOrStayFinite) {
   std::printf("sliver elements: %s\n", message.empty() ? "finished, finite" : message.c_str());
 }
 
-TEST(HardCases, InvertedInitialStateIsRejected) {
+TEST(SolverStress, InvertedInitialStateIsRejected) {
   auto sets = kCoarseSquare;
   Scene scene = load_scene(scene_path("rotating_square.json"), sets);
   BuiltScene<2> b = build_scene<2>(scene);

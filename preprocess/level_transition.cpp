@@ -1,4 +1,4 @@
-#include "preprocess/level_transfer.hpp"
+#include "preprocess/level_transition.hpp"
 
 #include <string>
 
@@ -10,22 +10,22 @@ namespace {
 
 void check_level(const MultilevelGraph& graph, int level) {
   if (level < 1 || level >= graph.num_levels()) {
-    throw InputError("transfer: level " + std::to_string(level) + " is not in 1.." +
+    throw InputError("transition: level " + std::to_string(level) + " is not in 1.." +
                      std::to_string(graph.num_levels() - 1));
   }
 }
 
 void check_values(size_t values, int channels, int64_t expected_nodes) {
   if (channels < 1 || values != static_cast<size_t>(expected_nodes) * channels) {
-    throw InputError("transfer: expected " + std::to_string(expected_nodes) + " x " +
+    throw InputError("transition: expected " + std::to_string(expected_nodes) + " x " +
                      std::to_string(channels) + " values, got " + std::to_string(values));
   }
 }
 
 }  // namespace
 
-std::vector<double> transfer_down(const MultilevelGraph& graph, int level,
-                                  const std::vector<double>& values, int channels) {
+std::vector<double> transition_down(const MultilevelGraph& graph, int level,
+                                    const std::vector<double>& values, int channels) {
   check_level(graph, level);
   const GraphLevel& fine = graph.levels[level - 1];
   check_values(values.size(), channels, fine.num_nodes());
@@ -47,8 +47,8 @@ std::vector<double> transfer_down(const MultilevelGraph& graph, int level,
   return out;
 }
 
-std::vector<double> transfer_up(const MultilevelGraph& graph, int level,
-                                const std::vector<double>& values, int channels) {
+std::vector<double> transition_up(const MultilevelGraph& graph, int level,
+                                  const std::vector<double>& values, int channels) {
   check_level(graph, level);
   const GraphLevel& coarse = graph.levels[level];
   check_values(values.size(), channels, coarse.num_nodes());

@@ -1,0 +1,62 @@
+// What the hard-case experiments (zero_shot.cpp, seeding_sensitivity.cpp, long_rollout.cpp) share:
+// the runs they read, dataset statistics, one rollout per (run, data, seeding), RMSE readers of
+// rollout metrics and their two kinds of plot.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/config.hpp"
+#include "pipeline/experiments/hard_cases.hpp"
+
+namespace bsms::experiments {
+
+// A trained run as the experiments use it (read through RunFolder, strictly).
+struct RunInfo {
+  std::string dir, label, model, seeding, data;
+};
+RunInfo run_info(const std::string& dir);
+// The request's runs; InputError without runs or --out.
+std::vector<RunInfo> run_infos(const HardCaseRequest& request);
+
+// Mesh sizes and lengths of one split of a dataset folder.
+struct SplitStats {
+  int64_t trajectories = 0, min_nodes = 0, max_nodes = 0, min_frames = 0, redrawn = 0;
+  double mean_nodes = 0;
+};
+SplitStats split_stats(const std::string& dir, const std::string& split);
+Json stats_json(const SplitStats& s);
+
+// Rolls `run` out on `data` with `seeding` (empty: the training seeding) into
+// OUT/rollouts/<run>-<tag>/ and returns its metrics.
+Json run_rollout(const HardCaseRequest& request, const RunInfo& run, const std::string& data,
+                 const std::string& seeding, const std::string& tag);
+
+// Figures of a rollout's metrics (NaN when absent): RMSE-all of constant velocity, the world
+// position RMSE under `key` (rmse_1, rmse_50, rmse_all), and the RMSE at predicted step `step`.
+double rmse_constant_velocity(const Json& metrics);
+double rmse(const Json& metrics, const char* key);
+double rmse_at(const Json& metrics, size_t step);
+std::vector<double> to_vector(const Json& array);  // numbers of a JSON array (NaN otherwise)
+
+struct Curve {
+  std::string label;
+  std::vector<double> values;  // per predicted step (step = index + 1)
+  std::string style = "lines lw 2";
+};
+// One line plot of per-step curves into PLOTS/NAME.png; `vlines` are (x, label) markers.
+void plot_curves(const std::filesystem::path& plots, const std::string& name,
+                 const std::string& title, const std::string& ylabel, bool logy,
+                 const std::vector<Curve>& curves,
+                 const std::vector<std::pair<double, std::string>>& vlines = {});
+// Ground truth and prediction of the last frame of the first trajectory of a rollout file.
+void plot_final_frame(const std::string& rollout_h5, const std::filesystem::path& plots,
+                      const std::string& name, const std::string& title);
+
+// The request's output folder, created (InputError when it cannot be).
+std::filesystem::path make_out(const HardCaseRequest& request);
+
+}  // namespace bsms::experiments

@@ -1,0 +1,132 @@
+#include "pipeline/experiments/experiment_runs.hpp"
+#include "pipeline/experiments/hard_cases.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <limits>
+#include <sstream>
+
+#include "core/error.hpp"
+#include "data/dataset/dataset.hpp"
+#include "pipeline/number_format.hpp"
+#include "pipeline/plotting.hpp"
+#include "pipeline/rollout.hpp"
+#include "pipeline/run_files.hpp"
+
+namespace bsms {
+namespace fs = std::filesystem;
+using namespace experiments;
+
+Json long_rollout_experiment(const HardCaseRequest& request, const std::string& long_data,
+                             const std::string& hard_data) {
+  const auto runs = run_infos(request);
+  const fs::path out = make_out(request);
+  const SplitStats lng = split_stats(long_data, request.split);
+  Json result = {{"experiment", "long-rollout"}, {"long", stats_json(lng)}};
+  std::vector<Curve> rmse_curves, inverted_curves;
+  std::ostringstream table;
+  table << "| Run | Horizon H (steps) | RMSE at H (m) | at 2H | at 5H | at 10H | RMSE-all | "
+           "Constant velocity RMSE-all | Inverted cells (max) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|---|---|\n";
+  Json per_run = Json::array();
+  size_t horizon_marker = 0;
+  for (const auto& run : runs) {
+    const SplitStats train = split_stats(run.data, "train");
+    const size_t horizon = static_cast<size_t>(train.min_frames - 2);  // predicted steps
+    horizon_marker = std::max(horizon_marker, horizon);
+    const size_t steps = static_cast<size_t>(lng.min_frames - 2);
+    if (steps < 10 * horizon)
+      throw InputError(long_data + ": trajectories of " + std::to_string(lng.min_frames) +
+                       " frames give " + std::to_string(steps) +
+                       " predicted steps, fewer than 10x the training horizon of " + run.dir +
+                       " (" + std::to_string(horizon) + " steps)");
+    const Json m = run_rollout(request, run, long_data, "", "long");
+    Json row = {{"run", run.dir},
+                {"model", run.model},
+                {"horizon_steps", horizon},
+                {"rollout", m},
+                {"rmse_at", Json::object()}};
+    table << "| " << run.label << " | " << horizon;
+    for (size_t k : {1, 2, 5, 10}) {
+      const double v = rmse_at(m, k * horizon);
+      row["rmse_at"][std::to_string(k) + "H"] = std::isfinite(v) ? Json(v) : Json(nullptr);
+      table << " | " << format_number(v, 3, Notation::kScientific);
+    }
+    table << " | " << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
+          << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
+          << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed) << " | "
+          << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
+    rmse_curves.push_back({run.label, to_vector(m["rmse_per_step"]["world_pos"])});
+    inverted_curves.push_back({run.label, to_vector(m["inverted_cells_per_step"])});
+    per_run.push_back(row);
+  }
+  result["runs"] = per_run;
+  const fs::path plots = out / "plots";
+  const std::vector<std::pair<double, std::string>> marks = {
+      {static_cast<double>(horizon_marker), "training horizon"}};
+  plot_curves(plots, "long_rmse", "Rollout RMSE over 10x the training horizon", "RMSE (m)", true,
+              rmse_curves, marks);
+  plot_curves(plots, "long_inverted", "Predicted cells turned inside out (fraction)",
+              "fraction of cells", false, inverted_curves, marks);
+
+  std::ostringstream md;
+  md << "## Long rollouts and stability\n\n"
+     << "Rollouts on `" << long_data << "` (" << lng.trajectories << " trajectories of "
+     << lng.min_frames << " frames; the UMLS-MPM solver produced every one"
+     << (lng.redrawn > 0
+             ? " after redrawing " + std::to_string(lng.redrawn) + " scenes it stopped on"
+             : " without a failure")
+     << "). H is the training horizon in predicted steps. Stability: a diverged rollout has a "
+        "non-finite state; an inverted cell has its orientation flipped against the first frame "
+        "(the solver stops on any). Constant velocity: extrapolating each trajectory's first "
+        "velocity, the reference a model must beat.\n\n"
+     << table.str() << "\n![long RMSE](plots/long_rmse.png)\n\n"
+     << "![inverted cells](plots/long_inverted.png)\n\n";
+
+  if (!hard_data.empty()) {
+    const SplitStats hard = split_stats(hard_data, request.split);
+    result["hard"] = stats_json(hard);
+    std::vector<Curve> hard_curves;
+    std::ostringstream hard_table;
+    hard_table
+        << "| Run | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Constant velocity RMSE-all (m) "
+           "| Own test split RMSE-all (m) | Inverted cells (max) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|\n";
+    Json hard_runs = Json::array();
+    for (const auto& run : runs) {
+      const Json m = run_rollout(request, run, hard_data, "", "hard");
+      const Json own = run_rollout(request, run, run.data, "", "own");
+      hard_table << "| " << run.label << " | "
+                 << format_number(rmse(m, "rmse_1"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(m, "rmse_50"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
+                 << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
+                 << format_number(rmse(own, "rmse_all"), 3, Notation::kScientific) << " | "
+                 << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed)
+                 << " | " << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>()
+                 << " |\n";
+      hard_curves.push_back(
+          {run.label + ", hard scenes", to_vector(m["rmse_per_step"]["world_pos"])});
+      hard_curves.push_back({run.label + ", own test split",
+                             to_vector(own["rmse_per_step"]["world_pos"]), "lines lw 2 dt 2"});
+      hard_runs.push_back({{"run", run.dir}, {"hard", m}, {"own", own}});
+    }
+    result["hard_runs"] = hard_runs;
+    plot_curves(plots, "hard_rmse", "Rollout RMSE on the solver's hard scenes", "RMSE (m)", true,
+                hard_curves);
+    md << "### Hard scenes\n\nRollouts on `" << hard_data << "` (" << hard.trajectories
+       << " trajectories, " << hard.min_nodes << "–" << hard.max_nodes
+       << " nodes), scenes outside the training distribution that are hard for the solver too; "
+       << hard.redrawn << " drawn scene(s) stopped the solver and were redrawn.\n\n"
+       << hard_table.str() << "\n![hard RMSE](plots/hard_rmse.png)\n\n";
+  }
+  write_text_atomic((out / "long_rollout.md").string(), md.str());
+  write_json_atomic((out / "metrics.json").string(), result);
+  return result;
+}
+
+}  // namespace bsms
