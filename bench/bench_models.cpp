@@ -99,7 +99,7 @@ void run_case(benchmark::State& state, const std::string& case_name, bool bsms_m
   const double rss_before = rss_mb("VmRSS:");
   bsms::RowMatrixXd positions;
   auto graph = make_graph(c, positions);
-  auto hierarchy = bsms::make_hierarchy(graph, bsms_model ? 0 : 1);
+  auto hierarchy = bsms::make_multilevel_tensors(graph, bsms_model ? 0 : 1);
   const int64_t n = hierarchy.num_nodes(0);
   bsms::GraphModelOptions o;
   o.input_size = 3;

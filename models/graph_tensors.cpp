@@ -220,15 +220,15 @@ EdgeIndex EdgeIndex::empty(int64_t num_nodes) {
   return edge_index_from_vectors({}, {}, num_nodes);
 }
 
-int GraphHierarchy::num_graphs() const {
+int MultilevelTensors::num_graphs() const {
   return node_offsets.empty() ? 0 : static_cast<int>(node_offsets[0].size()) - 1;
 }
 
-int64_t GraphHierarchy::num_nodes(int level) const {
+int64_t MultilevelTensors::num_nodes(int level) const {
   return edge_sets.at(level).at(0).num_nodes;
 }
 
-GraphHierarchy GraphHierarchy::with_edge_sets(
+MultilevelTensors MultilevelTensors::with_edge_sets(
     const std::vector<std::vector<EdgeIndex>>& extra) const {
   if (static_cast<int>(extra.size()) > num_levels()) {
     throw InputError("extra edge sets given for " + std::to_string(extra.size()) +
@@ -236,7 +236,7 @@ GraphHierarchy GraphHierarchy::with_edge_sets(
   }
   size_t num_extra = 0;
   for (const auto& level : extra) num_extra = std::max(num_extra, level.size());
-  GraphHierarchy out = *this;
+  MultilevelTensors out = *this;
   for (int k = 0; k < num_levels(); ++k) {
     const int64_t n = num_nodes(k);
     for (size_t s = 0; s < num_extra; ++s) {
@@ -252,7 +252,7 @@ GraphHierarchy GraphHierarchy::with_edge_sets(
   return out;
 }
 
-GraphHierarchy GraphHierarchy::with_edge_sets(
+MultilevelTensors MultilevelTensors::with_edge_sets(
     const std::vector<std::vector<torch::Tensor>>& extra) const {
   std::vector<std::vector<EdgeIndex>> sets(extra.size());
   for (size_t k = 0; k < extra.size() && static_cast<int>(k) < num_levels(); ++k) {
@@ -263,7 +263,7 @@ GraphHierarchy GraphHierarchy::with_edge_sets(
   return with_edge_sets(sets);
 }
 
-GraphHierarchy GraphHierarchy::with_edge_sets(const std::vector<EdgeList>& per_level) const {
+MultilevelTensors MultilevelTensors::with_edge_sets(const std::vector<EdgeList>& per_level) const {
   std::vector<std::vector<EdgeIndex>> sets(per_level.size());
   for (size_t k = 0; k < per_level.size() && static_cast<int>(k) < num_levels(); ++k) {
     sets[k].push_back(EdgeIndex::from_edge_list(per_level[k], num_nodes(static_cast<int>(k))));
@@ -271,21 +271,22 @@ GraphHierarchy GraphHierarchy::with_edge_sets(const std::vector<EdgeList>& per_l
   return with_edge_sets(sets);
 }
 
-GraphHierarchy make_hierarchy(const MultilevelGraph& graph, int max_levels) {
+MultilevelTensors make_multilevel_tensors(const MultilevelGraph& graph, int max_levels) {
   int levels = graph.num_levels();
   if (levels == 0) throw InputError("multilevel graph: no levels");
   if (max_levels > 0) levels = std::min(levels, max_levels);
-  GraphHierarchy h;
+  MultilevelTensors h;
   for (int k = 0; k < levels; ++k) {
     const GraphLevel& level = graph.levels[k];
     h.edge_sets.push_back({EdgeIndex::from_csr(level.graph)});
     h.node_offsets.push_back({0, level.num_nodes()});
-    if (k > 0) h.transitions.push_back(make_transition(graph.levels[k - 1], level, k - 1));
+    h.transitions.push_back(k > 0 ? make_transition(graph.levels[k - 1], level, k - 1)
+                                  : LevelTransition{});
   }
   return h;
 }
 
-GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graphs) {
+MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTensors*>& graphs) {
   if (graphs.empty()) throw InputError("graph batch: no graphs to merge");
   if (graphs.size() == 1) return *graphs[0];
   const int levels = graphs[0]->num_levels();
@@ -297,7 +298,7 @@ GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graph
     }
     for (const auto& sets : g->edge_sets) num_sets = std::max(num_sets, sets.size());
   }
-  GraphHierarchy out;
+  MultilevelTensors out;
   out.edge_sets.resize(levels);
   out.node_offsets.resize(levels);
   for (int k = 0; k < levels; ++k) {
@@ -319,7 +320,9 @@ GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graph
                                       g->node_offsets[k][j - 1]);
       }
     }
-    if (k + 1 < levels) {
+    if (k == 0) {
+      out.transitions.emplace_back();
+    } else {
       std::vector<const LevelTransition*> parts;
       for (const auto* g : graphs) parts.push_back(&g->transitions[k]);
       out.transitions.push_back(merge_transitions(parts));
@@ -328,24 +331,24 @@ GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graph
   return out;
 }
 
-const GraphHierarchy& HierarchyCache::get(const std::string& key, const MultilevelGraph& graph) {
+const MultilevelTensors& MultilevelTensorCache::get(const std::string& key, const MultilevelGraph& graph) {
   auto it = single_.find(key);
   if (it == single_.end()) {
-    it = single_.emplace(key, std::make_shared<GraphHierarchy>(make_hierarchy(graph, max_levels_)))
+    it = single_.emplace(key, std::make_shared<MultilevelTensors>(make_multilevel_tensors(graph, max_levels_)))
              .first;
   }
   return *it->second;
 }
 
-const GraphHierarchy& HierarchyCache::batch(const std::vector<std::string>& keys) {
+const MultilevelTensors& MultilevelTensorCache::batch(const std::vector<std::string>& keys) {
   if (keys == last_batch_keys_ && !keys.empty()) return last_batch_;
-  std::vector<const GraphHierarchy*> parts;
+  std::vector<const MultilevelTensors*> parts;
   for (const auto& key : keys) {
     auto it = single_.find(key);
     if (it == single_.end()) throw InputError("graph batch: mesh '" + key + "' is not cached");
     parts.push_back(it->second.get());
   }
-  last_batch_ = merge_hierarchies(parts);
+  last_batch_ = merge_multilevel_tensors(parts);
   last_batch_keys_ = keys;
   return last_batch_;
 }

@@ -38,7 +38,7 @@ struct EdgeIndex {
 // Non-parametric transition between level k (fine) and k+1 (coarse), DESIGN.md item 6, as a sparse
 // matrix D [N_coarse, N_fine]: D[c, i] = down_weight of the fine edge i -> pooled[c].
 // Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine = Dᵀ v_coarse.
-// Other hierarchies (models/proximity_hierarchy.hpp) may give an up matrix U [N_fine, N_coarse]
+// Other hierarchies (models/proximity_multilevel.hpp) may give an up matrix U [N_fine, N_coarse]
 // that is not Dᵀ; they set up_is_down_transpose = false so that gradients use the true adjoints.
 struct LevelTransition {
   int64_t fine_nodes = 0;
@@ -53,9 +53,12 @@ struct LevelTransition {
 };
 
 // The tensors a model needs for one graph or a block-diagonal batch of graphs.
-struct GraphHierarchy {
+struct MultilevelTensors {
   std::vector<std::vector<EdgeIndex>> edge_sets;   // [level][set]; set 0 = mesh edges
-  std::vector<LevelTransition> transitions;        // [level], level k -> k+1; size num_levels - 1
+  // [level]: transitions[k] joins level k - 1 (fine) and level k (coarse), the convention of
+  // preprocess/ and of the multilevel file (level k holds its pooled nodes and down weights);
+  // transitions[0] is empty. Size num_levels.
+  std::vector<LevelTransition> transitions;
   std::vector<std::vector<int64_t>> node_offsets;  // [level][graph + 1] node range of each graph
 
   int num_levels() const { return static_cast<int>(edge_sets.size()); }
@@ -65,34 +68,34 @@ struct GraphHierarchy {
   // A copy with extra edge sets (e.g. contact edges) appended after the existing ones:
   // extra[level][s] is an [E, 2] int64 tensor of (sender, receiver) in this hierarchy's numbering.
   // Levels missing from `extra` get empty sets, so every level has the same number of sets.
-  GraphHierarchy with_edge_sets(const std::vector<std::vector<torch::Tensor>>& extra) const;
-  GraphHierarchy with_edge_sets(const std::vector<std::vector<EdgeIndex>>& extra) const;
+  MultilevelTensors with_edge_sets(const std::vector<std::vector<torch::Tensor>>& extra) const;
+  MultilevelTensors with_edge_sets(const std::vector<std::vector<EdgeIndex>>& extra) const;
   // One extra set per level, e.g. enhance_contact_edges_all_levels() (preprocess/).
-  GraphHierarchy with_edge_sets(const std::vector<EdgeList>& per_level) const;
+  MultilevelTensors with_edge_sets(const std::vector<EdgeList>& per_level) const;
 };
 
 // Tensors of a multilevel graph; max_levels > 0 keeps only the finest max_levels levels.
-GraphHierarchy make_hierarchy(const MultilevelGraph& graph, int max_levels = 0);
+MultilevelTensors make_multilevel_tensors(const MultilevelGraph& graph, int max_levels = 0);
 
 // Block-diagonal merge of several hierarchies (different meshes allowed) with the same number of
 // levels; graph g's nodes follow those of graphs 0..g-1 at every level. Node features of the batch
 // are torch::cat of the graphs' features along dim 0. InputError on a level-count mismatch.
-GraphHierarchy merge_hierarchies(const std::vector<const GraphHierarchy*>& graphs);
+MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTensors*>& graphs);
 
 // Builds each mesh's hierarchy once and keeps it (and the last batch merged) for later steps.
-class HierarchyCache {
+class MultilevelTensorCache {
  public:
-  explicit HierarchyCache(int max_levels = 0) : max_levels_(max_levels) {}
-  const GraphHierarchy& get(const std::string& key, const MultilevelGraph& graph);
+  explicit MultilevelTensorCache(int max_levels = 0) : max_levels_(max_levels) {}
+  const MultilevelTensors& get(const std::string& key, const MultilevelGraph& graph);
   bool contains(const std::string& key) const { return single_.count(key) != 0; }
   // The merged batch of cached meshes (all keys must have been added with get()).
-  const GraphHierarchy& batch(const std::vector<std::string>& keys);
+  const MultilevelTensors& batch(const std::vector<std::string>& keys);
 
  private:
   int max_levels_;
-  std::map<std::string, std::shared_ptr<GraphHierarchy>> single_;
+  std::map<std::string, std::shared_ptr<MultilevelTensors>> single_;
   std::vector<std::string> last_batch_keys_;
-  GraphHierarchy last_batch_;
+  MultilevelTensors last_batch_;
 };
 
 }  // namespace bsms

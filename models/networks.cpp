@@ -57,7 +57,7 @@ int64_t GraphModel::edge_feature_size(size_t set) const {
   return size + (stretch(set).enabled() ? 1 : 0);
 }
 
-EdgeIndex GraphModel::edge_set(const GraphHierarchy& graph, int level, size_t set) {
+EdgeIndex GraphModel::edge_set(const MultilevelTensors& graph, int level, size_t set) {
   const auto& sets = graph.edge_sets[level];
   return set < sets.size() ? sets[set] : EdgeIndex::empty(graph.num_nodes(level));
 }
@@ -68,7 +68,7 @@ torch::Tensor GraphModel::run_mlp(Mlp& mlp, const torch::Tensor& x) const {
 
 void GraphModel::check_inputs(const torch::Tensor& nodes,
                               const std::vector<torch::Tensor>& positions,
-                              const GraphHierarchy& graph) const {
+                              const MultilevelTensors& graph) const {
   if (graph.num_levels() == 0) throw InputError("graph model: empty graph hierarchy");
   const int64_t n = graph.num_nodes(0);
   if (nodes.dim() != 2 || nodes.size(0) != n || nodes.size(1) != options_.input_size) {
@@ -116,7 +116,7 @@ BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
 
 torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
                                const std::vector<torch::Tensor>& positions,
-                               const GraphHierarchy& graph) {
+                               const MultilevelTensors& graph) {
   check_inputs(nodes, positions, graph);
   const int levels = options_.num_levels;
   if (graph.num_levels() != levels) {
@@ -140,7 +140,7 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
     torch::NoGradGuard no_grad;
     for (int k = 0; k + 1 < levels; ++k) {
       for (const auto& p : level_pos[k]) {
-        level_pos[k + 1].push_back(transition_down(p.contiguous(), graph.transitions[k]));
+        level_pos[k + 1].push_back(transition_down(p.contiguous(), graph.transitions[k + 1]));
       }
     }
   }
@@ -153,11 +153,11 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
   for (int k = 0; k + 1 < levels; ++k) {
     v = down_[k]->forward(v, feats[k], idx[k], mode_);
     skips.push_back(v);
-    v = transition_down(v, graph.transitions[k]);
+    v = transition_down(v, graph.transitions[k + 1]);
   }
   v = bottom_->forward(v, feats[levels - 1], idx[levels - 1], mode_);
   for (int k = levels - 2; k >= 0; --k) {
-    v = transition_up(v, graph.transitions[k]);
+    v = transition_up(v, graph.transitions[k + 1]);
     v = up_[k]->forward(v, feats[k], idx[k], mode_) + skips[k];
   }
   return run_mlp(*decoder_, v);
@@ -234,7 +234,7 @@ MeshGraphNets::MeshGraphNets(GraphModelOptions options) : GraphModel(std::move(o
 
 torch::Tensor MeshGraphNets::forward(const torch::Tensor& nodes,
                                      const std::vector<torch::Tensor>& positions,
-                                     const GraphHierarchy& graph) {
+                                     const MultilevelTensors& graph) {
   check_inputs(nodes, positions, graph);
   std::vector<EdgeIndex> sets;
   std::vector<const EdgeIndex*> edges;

@@ -33,12 +33,12 @@ class GraphModel : public torch::nn::Module {
  public:
   explicit GraphModel(GraphModelOptions options);
   // nodes [N, input_size] float32; positions[f] [N, position_dims[f]] float32 (no gradient is
-  // taken through them); graph: N = graph.num_nodes(0), e.g. a merge_hierarchies() batch.
+  // taken through them); graph: N = graph.num_nodes(0), e.g. a merge_multilevel_tensors() batch.
   // Edge set s of each level is graph.edge_sets[level][s]; sets the model has but the graph lacks
   // count as empty (e.g. a frame without contacts). Returns [N, output_size].
   virtual torch::Tensor forward(const torch::Tensor& nodes,
                                 const std::vector<torch::Tensor>& positions,
-                                const GraphHierarchy& graph) = 0;
+                                const MultilevelTensors& graph) = 0;
   const GraphModelOptions& options() const { return options_; }
   // kProjection (default): fused per-node projection kernels. kConcat: every MLP evaluated with
   // plain LibTorch ops and concatenated edge inputs, as the reference implementation does (same
@@ -52,11 +52,11 @@ class GraphModel : public torch::nn::Module {
     return set < options_.edge_set_stretch.size() ? options_.edge_set_stretch[set] : EdgeStretch{};
   }
   // Edge index `set` of `level`, or an empty set when the graph has fewer sets.
-  static EdgeIndex edge_set(const GraphHierarchy& graph, int level, size_t set);
+  static EdgeIndex edge_set(const MultilevelTensors& graph, int level, size_t set);
   // mlp.forward, or mlp.forward_reference in EdgeMlpMode::kConcat.
   torch::Tensor run_mlp(Mlp& mlp, const torch::Tensor& x) const;
   void check_inputs(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
-                    const GraphHierarchy& graph) const;
+                    const MultilevelTensors& graph) const;
 
   GraphModelOptions options_;
   EdgeMlpMode mode_ = EdgeMlpMode::kProjection;
@@ -69,7 +69,7 @@ class BsmsGnn : public GraphModel {
  public:
   explicit BsmsGnn(GraphModelOptions options);
   torch::Tensor forward(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
-                        const GraphHierarchy& graph) override;
+                        const MultilevelTensors& graph) override;
 
  private:
   std::shared_ptr<Mlp> encoder_, decoder_;
@@ -96,7 +96,7 @@ class MeshGraphNets : public GraphModel {
  public:
   explicit MeshGraphNets(GraphModelOptions options);
   torch::Tensor forward(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
-                        const GraphHierarchy& graph) override;
+                        const MultilevelTensors& graph) override;
 
  private:
   std::shared_ptr<Mlp> node_encoder_, decoder_;

@@ -43,19 +43,19 @@ std::vector<int64_t> bi_stride_pool(const CsrGraph& graph, const ClusterNodes& c
     const int64_t even = clusters.size(c) - odd[c];
     keep_odd[c] = odd[c] > 0 && odd[c] < even;
   }
-  std::vector<int64_t> kept;
-  kept.reserve(n / 2 + clusters.count);
+  std::vector<int64_t> pooled;
+  pooled.reserve(n / 2 + clusters.count);
   for (int64_t v = 0; v < n; ++v) {
-    if ((depth[v] & 1) == keep_odd[owner[v]]) kept.push_back(v);
+    if ((depth[v] & 1) == keep_odd[owner[v]]) pooled.push_back(v);
   }
-  return kept;
+  return pooled;
 }
 
-CsrGraph enhance_adjacency(const CsrGraph& graph, const std::vector<int64_t>& kept) {
+CsrGraph enhance_adjacency(const CsrGraph& graph, const std::vector<int64_t>& pooled) {
   const int64_t n = graph.num_nodes;
-  const int64_t m = static_cast<int64_t>(kept.size());
+  const int64_t m = static_cast<int64_t>(pooled.size());
   std::vector<int64_t> new_index(n, -1);
-  for (int64_t r = 0; r < m; ++r) new_index[kept[r]] = r;
+  for (int64_t r = 0; r < m; ++r) new_index[pooled[r]] = r;
 
   // Rows are built in fixed chunks (independent of the thread count), then concatenated.
   constexpr int64_t kChunk = 4096;
@@ -72,7 +72,7 @@ CsrGraph enhance_adjacency(const CsrGraph& graph, const std::vector<int64_t>& ke
       std::vector<int64_t>& targets = chunk_targets[chunk];
       const int64_t row_end = std::min(m, (chunk + 1) * kChunk);
       for (int64_t r = chunk * kChunk; r < row_end; ++r) {
-        const int64_t u = kept[r];
+        const int64_t u = pooled[r];
         const size_t start = targets.size();
         mark[u] = r;
         for (const int64_t* v = graph.begin(u); v != graph.end(u); ++v) {
@@ -104,7 +104,7 @@ CsrGraph enhance_adjacency(const CsrGraph& graph, const std::vector<int64_t>& ke
 }
 
 TransitionWeights transition_weights(const CsrGraph& graph, const std::vector<double>& node_weight,
-                                     const std::vector<int64_t>& kept) {
+                                     const std::vector<int64_t>& pooled) {
   const int64_t n = graph.num_nodes;
   std::vector<double> spread(n);    // ŵ_i. = w_i / outdeg(i), the same on every out-edge of i
   std::vector<double> incoming(n);  // sum_{i->j} ŵ_ij
@@ -128,9 +128,9 @@ TransitionWeights transition_weights(const CsrGraph& graph, const std::vector<do
       out.down_weight[e] = static_cast<float>(spread[i] / incoming[graph.targets[e]]);
     }
   }
-  out.node_weight.resize(kept.size());
-  for (size_t r = 0; r < kept.size(); ++r) {
-    const int64_t j = kept[r];
+  out.node_weight.resize(pooled.size());
+  for (size_t r = 0; r < pooled.size(); ++r) {
+    const int64_t j = pooled[r];
     out.node_weight[r] = graph.degree(j) > 0 ? incoming[j] : node_weight[j];
   }
   return out;

@@ -82,7 +82,7 @@ Batch EulerianAdapter::make_batch(const std::vector<EulerianFrame>& frames,
     throw std::logic_error("EulerianAdapter: one noise generator per frame, or one for all");
   Batch b;
   std::vector<torch::Tensor> inputs, mesh_pos, masks, states, noises;
-  std::vector<const GraphHierarchy*> graphs;
+  std::vector<const MultilevelTensors*> graphs;
   const auto scale = noise_std.empty()
                          ? torch::Tensor()
                          : torch::tensor(std::vector<float>(noise_std.begin(), noise_std.end()));
@@ -122,7 +122,7 @@ Batch EulerianAdapter::make_batch(const std::vector<EulerianFrame>& frames,
   b.mask = torch::cat(masks, 0);
   b.cur = torch::cat(states, 0);
   if (!noises.empty()) b.noise = torch::cat(noises, 0);
-  b.graph = graphs.size() == 1 ? *graphs[0] : merge_hierarchies(graphs);
+  b.graph = graphs.size() == 1 ? *graphs[0] : merge_multilevel_tensors(graphs);
   return b;
 }
 

@@ -119,7 +119,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
                 << failure << ")\n";
     }
   }
-  entry->hierarchy = make_hierarchy(entry->multilevel, levels_);
+  entry->hierarchy = make_multilevel_tensors(entry->multilevel, levels_);
   const CsrGraph& g = entry->multilevel.levels[0].graph;
   double total = 0;
   for (int64_t i = 0; i < g.num_nodes; ++i)

@@ -379,7 +379,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   Batch b;
   std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises, groups,
       masses;
-  std::vector<GraphHierarchy> graphs;
+  std::vector<MultilevelTensors> graphs;
   graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
   for (size_t g = 0; g < states.size(); ++g) {
@@ -476,9 +476,9 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   if (graphs.size() == 1) {
     b.graph = std::move(graphs[0]);
   } else {
-    std::vector<const GraphHierarchy*> pointers;
+    std::vector<const MultilevelTensors*> pointers;
     for (const auto& g : graphs) pointers.push_back(&g);
-    b.graph = merge_hierarchies(pointers);
+    b.graph = merge_multilevel_tensors(pointers);
   }
   return b;
 }

@@ -116,7 +116,7 @@ struct Batch {
   torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
   torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
   torch::Tensor noise;                   // [N, dim] noise added to cur (undefined without noise)
-  GraphHierarchy graph;
+  MultilevelTensors graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
   // With spec.has_momentum(): each node's free group (-1: none; group ids are unique in the
   // batch) and its lumped mass (reference cell volume / (dim + 1) per vertex; a uniform density

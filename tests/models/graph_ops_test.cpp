@@ -220,7 +220,7 @@ TEST(Transitions, MatchDenseFormula) {
   torch::manual_seed(5);
   auto mesh = testing::grid_mesh(7, 5);
   auto graph = testing::reference_multilevel(mesh.graph, 4);
-  auto hierarchy = make_hierarchy(graph);
+  auto hierarchy = make_multilevel_tensors(graph);
   ASSERT_EQ(hierarchy.num_levels(), 4);
   for (int k = 0; k + 1 < 4; ++k) {
     const auto& fine = graph.levels[k];
@@ -228,11 +228,11 @@ TEST(Transitions, MatchDenseFormula) {
     auto pooled = torch::tensor(coarse.pooled, torch::kInt64);
     auto m = dense_weights(fine, coarse);
     auto v = torch::randn({fine.num_nodes(), 6}, torch::requires_grad());
-    auto down = transition_down(v, hierarchy.transitions[k]);
+    auto down = transition_down(v, hierarchy.transitions[k + 1]);
     expect_close(down, m.mm(v).index_select(0, pooled));
     auto u = torch::randn({coarse.num_nodes(), 6}, torch::requires_grad());
     auto unpooled = torch::zeros({fine.num_nodes(), 6}).index_copy(0, pooled, u);
-    auto up = transition_up(u, hierarchy.transitions[k]);
+    auto up = transition_up(u, hierarchy.transitions[k + 1]);
     expect_close(up, m.t().mm(unpooled));
     // Adjoint gradients: d(down)/dv = Dᵀ, d(up)/du = D.
     auto gd = torch::randn_like(down), gu = torch::randn_like(up);
@@ -244,11 +244,29 @@ TEST(Transitions, MatchDenseFormula) {
   }
 }
 
+// One level convention in preprocess and models: transition k belongs to its coarse level k.
+TEST(Transitions, IndexIsTheCoarseLevel) {
+  auto mesh = testing::grid_mesh(9, 8);
+  auto graph = testing::reference_multilevel(mesh.graph, 4);
+  const MultilevelTensors single = make_multilevel_tensors(graph);
+  const MultilevelTensors merged = merge_multilevel_tensors({&single, &single});
+  for (const MultilevelTensors* h : {&single, &merged}) {
+    const MultilevelTensors& hierarchy = *h;
+    ASSERT_EQ(hierarchy.transitions.size(), 4u);
+    EXPECT_EQ(hierarchy.transitions[0].coarse_nodes, 0);
+    EXPECT_EQ(hierarchy.transitions[0].fine_nodes, 0);
+    for (int k = 1; k < 4; ++k) {
+      EXPECT_EQ(hierarchy.transitions[k].fine_nodes, hierarchy.num_nodes(k - 1)) << k;
+      EXPECT_EQ(hierarchy.transitions[k].coarse_nodes, hierarchy.num_nodes(k)) << k;
+    }
+  }
+}
+
 TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
   auto mesh = testing::grid_mesh(9, 8);
   auto graph = testing::reference_multilevel(mesh.graph, 5);
-  auto hierarchy = make_hierarchy(graph);
-  for (int k = 0; k + 1 < 5; ++k) {
+  auto hierarchy = make_multilevel_tensors(graph);
+  for (int k = 1; k < 5; ++k) {
     const auto& t = hierarchy.transitions[k];
     auto ones = torch::full({t.fine_nodes, 3}, 2.5f);
     // Receiver weights sum to 1, so a constant field is reproduced on the coarse level.
@@ -261,11 +279,11 @@ TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
   }
 }
 
-TEST(GraphHierarchy, MergeIsBlockDiagonal) {
+TEST(MultilevelTensors, MergeIsBlockDiagonal) {
   auto m1 = testing::grid_mesh(5, 4), m2 = testing::grid_mesh(3, 6);
-  auto h1 = make_hierarchy(testing::reference_multilevel(m1.graph, 3));
-  auto h2 = make_hierarchy(testing::reference_multilevel(m2.graph, 3));
-  auto merged = merge_hierarchies({&h1, &h2});
+  auto h1 = make_multilevel_tensors(testing::reference_multilevel(m1.graph, 3));
+  auto h2 = make_multilevel_tensors(testing::reference_multilevel(m2.graph, 3));
+  auto merged = merge_multilevel_tensors({&h1, &h2});
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(merged.num_nodes(k), h1.num_nodes(k) + h2.num_nodes(k));
     EXPECT_EQ(merged.node_offsets[k],
@@ -280,19 +298,19 @@ TEST(GraphHierarchy, MergeIsBlockDiagonal) {
             {segment_sum(x1.index_select(0, h1.edge_sets[k][0].senders), h1.edge_sets[k][0]),
              segment_sum(x2.index_select(0, h2.edge_sets[k][0].senders), h2.edge_sets[k][0])}));
     if (k < 2) {
-      expect_close(transition_down(x, merged.transitions[k]),
-                   torch::cat({transition_down(x1, h1.transitions[k]),
-                               transition_down(x2, h2.transitions[k])}));
+      expect_close(transition_down(x, merged.transitions[k + 1]),
+                   torch::cat({transition_down(x1, h1.transitions[k + 1]),
+                               transition_down(x2, h2.transitions[k + 1])}));
     }
   }
-  auto h3 = make_hierarchy(testing::reference_multilevel(m2.graph, 2));
-  EXPECT_THROW(merge_hierarchies({&h1, &h3}), InputError);
+  auto h3 = make_multilevel_tensors(testing::reference_multilevel(m2.graph, 2));
+  EXPECT_THROW(merge_multilevel_tensors({&h1, &h3}), InputError);
 }
 
-TEST(GraphHierarchy, ExtraEdgeSetsAndCache) {
+TEST(MultilevelTensors, ExtraEdgeSetsAndCache) {
   auto mesh = testing::grid_mesh(4, 4);
   auto graph = testing::reference_multilevel(mesh.graph, 3);
-  HierarchyCache cache;
+  MultilevelTensorCache cache;
   const auto& h = cache.get("grid", graph);
   EXPECT_EQ(&h, &cache.get("grid", graph));  // built once
   auto contact = torch::tensor({0, 15, 15, 0}, torch::kInt64).reshape({2, 2});

@@ -31,7 +31,7 @@ GraphModelOptions lagrangian_options(int levels, int64_t latent = 16) {
 }
 
 struct Problem {
-  GraphHierarchy graph;
+  MultilevelTensors graph;
   torch::Tensor nodes;
   std::vector<torch::Tensor> positions;
 };
@@ -40,7 +40,7 @@ struct Problem {
 Problem make_problem(int64_t nx, int64_t ny, int levels, bool contacts) {
   auto mesh = testing::grid_mesh(nx, ny);
   Problem p;
-  p.graph = make_hierarchy(testing::reference_multilevel(mesh.graph, levels));
+  p.graph = make_multilevel_tensors(testing::reference_multilevel(mesh.graph, levels));
   if (contacts) {
     std::vector<std::vector<torch::Tensor>> extra;
     for (int k = 0; k < levels; ++k) {
@@ -125,7 +125,7 @@ TEST(Networks, BatchOfTwoMeshesEqualsEachAlone) {
   torch::manual_seed(13);
   auto p1 = make_problem(6, 5, 3, true);
   auto p2 = make_problem(4, 9, 3, true);
-  auto batch = merge_hierarchies({&p1.graph, &p2.graph});
+  auto batch = merge_multilevel_tensors({&p1.graph, &p2.graph});
   auto nodes = torch::cat({p1.nodes, p2.nodes});
   std::vector<torch::Tensor> positions;
   for (size_t f = 0; f < 2; ++f)

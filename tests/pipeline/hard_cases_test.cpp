@@ -138,7 +138,7 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   x.index_put_({0, 1}, 0.97);  // 0.03 below the top: 0.3
   LagrangianAdapter adapter(s);
   FrameState state{&graphs, &mesh, x, x, {}};
-  graphs.hierarchy = GraphHierarchy();
+  graphs.hierarchy = MultilevelTensors();
   const auto inputs = adapter.make_batch({state}).inputs;
   ASSERT_EQ(inputs.size(1), 10);
   EXPECT_NEAR(inputs[0][6].item<float>(), 0.5f, 1e-5);

@@ -46,7 +46,7 @@ PairSetup pair_setup() {
 }
 
 torch::Tensor predict(BsmsGnn& model, const Sticks& sticks, const std::vector<StickBc>& bcs,
-                      const GraphHierarchy& graph) {
+                      const MultilevelTensors& graph) {
   torch::NoGradGuard no_grad;
   return model.forward(stick_inputs(sticks, bcs), {sticks.positions}, graph);
 }
@@ -82,14 +82,14 @@ TEST(HeatSticks, BiStrideKeepsTheSticksIsolatedProximityDoesNot) {
   BsmsGnn model(heat_model_options(kLevels, 32));
   model.eval();
 
-  auto bs_pair = predict(model, s.pair, s.bcs, bistride_hierarchy(s.pair, kLevels));
-  auto bs_alone = torch::cat({predict(model, s.a, {s.bcs[0]}, bistride_hierarchy(s.a, kLevels)),
-                              predict(model, s.b, {s.bcs[1]}, bistride_hierarchy(s.b, kLevels))});
+  auto bs_pair = predict(model, s.pair, s.bcs, bistride_multilevel(s.pair, kLevels));
+  auto bs_alone = torch::cat({predict(model, s.a, {s.bcs[0]}, bistride_multilevel(s.a, kLevels)),
+                              predict(model, s.b, {s.bcs[1]}, bistride_multilevel(s.b, kLevels))});
   EXPECT_LE((bs_pair - bs_alone).abs().max().item<double>(), 1e-5);
 
-  auto px_pair = predict(model, s.pair, s.bcs, proximity_hierarchy(s.pair, kLevels));
-  auto px_alone = torch::cat({predict(model, s.a, {s.bcs[0]}, proximity_hierarchy(s.a, kLevels)),
-                              predict(model, s.b, {s.bcs[1]}, proximity_hierarchy(s.b, kLevels))});
+  auto px_pair = predict(model, s.pair, s.bcs, proximity_multilevel(s.pair, kLevels));
+  auto px_alone = torch::cat({predict(model, s.a, {s.bcs[0]}, proximity_multilevel(s.a, kLevels)),
+                              predict(model, s.b, {s.bcs[1]}, proximity_multilevel(s.b, kLevels))});
   // The nodes next to the gap: A's last three and B's first three.
   auto near = torch::arange(kNodes - 3, kNodes + 3);
   const double scale = px_alone.abs().max().item<double>();
@@ -99,8 +99,8 @@ TEST(HeatSticks, BiStrideKeepsTheSticksIsolatedProximityDoesNot) {
 
 TEST(HeatSticks, OnlyProximityHasEdgesAcrossTheGap) {
   const PairSetup s = pair_setup();
-  const auto bs = stick_mixing(bistride_hierarchy(s.pair, kLevels), s.pair.stick);
-  const auto px = stick_mixing(proximity_hierarchy(s.pair, kLevels), s.pair.stick);
+  const auto bs = stick_mixing(bistride_multilevel(s.pair, kLevels), s.pair.stick);
+  const auto px = stick_mixing(proximity_multilevel(s.pair, kLevels), s.pair.stick);
   ASSERT_EQ(bs.cross_stick_edges.size(), static_cast<size_t>(kLevels));
   ASSERT_EQ(px.cross_stick_edges.size(), static_cast<size_t>(kLevels));
   for (int k = 0; k < kLevels; ++k) {
@@ -118,7 +118,7 @@ TEST(HeatSticks, ProximityEdgeWithoutSharedCell) {
   // neighbouring cells: no shared cell at level 1, but an edge across the gap.
   const double dx = 1.0 / (kNodes - 1);
   const Sticks pair = make_sticks({0.0, 1.0 + 2.5 * dx}, kNodes);
-  const auto px = stick_mixing(proximity_hierarchy(pair, 3), pair.stick);
+  const auto px = stick_mixing(proximity_multilevel(pair, 3), pair.stick);
   EXPECT_EQ(px.mixed_nodes[1], 0);
   EXPECT_GT(px.cross_stick_edges[1], 0);
 }

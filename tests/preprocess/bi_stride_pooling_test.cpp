@@ -48,11 +48,11 @@ TEST(EnhanceAdjacency, EqualsDenseFormula) {
   for (const auto& g : test::random_test_graphs(30, 200, 41)) {
     SCOPED_TRACE(g.name);
     const ClusterNodes clusters = clusters_of(g.graph);
-    const auto kept = bi_stride_pool(g.graph, clusters, close_center_seeds(clusters, g.positions));
-    const CsrGraph coarse = enhance_adjacency(g.graph, kept);
+    const auto pooled = bi_stride_pool(g.graph, clusters, close_center_seeds(clusters, g.positions));
+    const CsrGraph coarse = enhance_adjacency(g.graph, pooled);
     ASSERT_EQ(test::csr_problem(coarse), "");
     auto a = test::dense_plus_identity(test::dense_adjacency(g.graph));
-    auto expected = test::dense_select(test::dense_product(a, a), kept);
+    auto expected = test::dense_select(test::dense_product(a, a), pooled);
     for (size_t i = 0; i < expected.size(); ++i) expected[i][i] = 0;
     EXPECT_EQ(test::dense_adjacency(coarse), expected);
   }
@@ -66,9 +66,9 @@ TEST(TransitionWeights, MatchDefinitionAndSumToOne) {
     std::uniform_real_distribution<double> unit(0.5, 2.0);
     std::vector<double> w(n);
     for (auto& x : w) x = unit(rng);
-    std::vector<int64_t> kept;
-    for (int64_t v = 0; v < n; v += 2) kept.push_back(v);
-    const TransitionWeights t = transition_weights(g.graph, w, kept);
+    std::vector<int64_t> pooled;
+    for (int64_t v = 0; v < n; v += 2) pooled.push_back(v);
+    const TransitionWeights t = transition_weights(g.graph, w, pooled);
     ASSERT_EQ(static_cast<int64_t>(t.down_weight.size()), g.graph.num_edges());
     // Independent evaluation from the edge list.
     const EdgeList edges = g.graph.edges();
@@ -88,8 +88,8 @@ TEST(TransitionWeights, MatchDefinitionAndSumToOne) {
         EXPECT_NEAR(sum[j], 1.0, 1e-5) << "receiver " << j;
       }
     }
-    for (size_t r = 0; r < kept.size(); ++r) {
-      const int64_t j = kept[r];
+    for (size_t r = 0; r < pooled.size(); ++r) {
+      const int64_t j = pooled[r];
       EXPECT_NEAR(t.node_weight[r], g.graph.degree(j) > 0 ? incoming[j] : w[j], 1e-12);
     }
   }
@@ -119,13 +119,13 @@ TEST(MultilevelProperties, HoldOnRandomMeshesForEverySeeding) {
         ASSERT_TRUE(std::is_sorted(coarse.pooled.begin(), coarse.pooled.end()));
         std::vector<uint8_t> is_kept(fine.num_nodes(), 0);
         for (int64_t v : coarse.pooled) is_kept[v] = 1;
-        // 2-CC: every fine node is kept or adjacent to a kept node.
+        // 2-CC: every fine node is pooled or adjacent to a pooled node.
         for (int64_t v = 0; v < fine.num_nodes(); ++v) {
           bool covered = is_kept[v];
           for (const int64_t* u = fine.graph.begin(v); u != fine.graph.end(v) && !covered; ++u) {
             covered = is_kept[*u];
           }
-          ASSERT_TRUE(covered) << "node " << v << " is neither kept nor next to a kept node";
+          ASSERT_TRUE(covered) << "node " << v << " is neither pooled nor next to a pooled node";
         }
         // No coarse edge joins two clusters; each cluster stays one cluster.
         std::vector<int64_t> coarse_label(coarse.num_nodes());
@@ -157,7 +157,7 @@ TEST(MultilevelProperties, HoldOnRandomMeshesForEverySeeding) {
             ASSERT_NEAR(down[2 * r], 3.5, 1e-5);
           }
         }
-        // Coarse positions are the positions of the kept nodes.
+        // Coarse positions are the positions of the pooled nodes.
         for (int64_t r = 0; r < coarse.num_nodes(); ++r) {
           ASSERT_EQ(coarse.positions.row(r), fine.positions.row(coarse.pooled[r]));
         }

@@ -17,7 +17,7 @@
 #include "core/graph.hpp"
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
-#include "models/proximity_hierarchy.hpp"
+#include "models/proximity_multilevel.hpp"
 #include "pipeline/fit.hpp"
 #include "pipeline/number_format.hpp"
 #include "pipeline/plotting.hpp"
@@ -32,35 +32,12 @@ namespace {
 
 constexpr int64_t kMaxNodes = 100000;
 constexpr int64_t kMaxLatent = 4096;
-// Nodes at most this many dx from the gap are the "near the gap" nodes of the metrics.
-constexpr double kNearGapDx = 3.0;
 // Losses averaged for the reported final training loss.
 constexpr int64_t kFinalLossSteps = 100;
 
-enum class HierarchyKind { kBiStride, kProximity };
-
-struct ModelSpec {
-  HierarchyKind kind;
-  const char* key;    // metrics.json and CSV name
-  const char* label;  // plots and tables
-};
-constexpr std::array<ModelSpec, 2> kModels{{{HierarchyKind::kBiStride, "bistride", "bi-stride"},
-                                            {HierarchyKind::kProximity, "proximity", "proximity"}}};
-
-// The four test configurations, A then B from left to right; "DF" = Dirichlet end left, flux end
-// right. The gap lies between the two middle letters.
-struct Combo {
-  const char* name;
-  bool a_dirichlet_left, b_dirichlet_left;
-};
-constexpr std::array<Combo, 4> kCombos{{{"DF-DF", true, true},
-                                        {"DF-FD", true, false},
-                                        {"FD-DF", false, true},
-                                        {"FD-FD", false, false}}};
-
-GraphHierarchy build_hierarchy(HierarchyKind kind, const Sticks& sticks, int levels) {
-  return kind == HierarchyKind::kBiStride ? bistride_hierarchy(sticks, levels)
-                                          : proximity_hierarchy(sticks, levels);
+MultilevelTensors build_hierarchy(HierarchyKind kind, const Sticks& sticks, int levels) {
+  return kind == HierarchyKind::kBiStride ? bistride_multilevel(sticks, levels)
+                                          : proximity_multilevel(sticks, levels);
 }
 
 std::vector<float> to_floats(const torch::Tensor& t) {
@@ -78,12 +55,6 @@ struct RmsAccumulator {
   }
   double value() const { return count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0; }
 };
-
-std::string joined(const std::vector<int64_t>& values) {
-  std::string out;
-  for (size_t i = 0; i < values.size(); ++i) out += (i ? " / " : "") + std::to_string(values[i]);
-  return out;
-}
 
 struct TrainResult {
   std::shared_ptr<BsmsGnn> model;
@@ -110,7 +81,7 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
   fit_options.label = std::string("train ") + spec.label;
   FitHooks hooks;
   hooks.loss = [&](int64_t) {
-    std::vector<GraphHierarchy> graphs;
+    std::vector<MultilevelTensors> graphs;
     std::vector<torch::Tensor> inputs, positions, truth;
     for (int64_t b = 0; b < o.batch; ++b) {
       const Sticks stick = make_sticks({offset(rng)}, o.nodes);
@@ -123,9 +94,9 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
       positions.push_back(stick.positions);
       truth.push_back(stick_solution(stick, {bc}));
     }
-    std::vector<const GraphHierarchy*> parts;
+    std::vector<const MultilevelTensors*> parts;
     for (const auto& g : graphs) parts.push_back(&g);
-    const GraphHierarchy batch = merge_hierarchies(parts);
+    const MultilevelTensors batch = merge_multilevel_tensors(parts);
     auto pred = r.model->forward(torch::cat(inputs), {torch::cat(positions)}, batch);
     return torch::mse_loss(pred, torch::cat(truth));
   };
@@ -141,7 +112,7 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
 torch::Tensor predict(BsmsGnn& model, HierarchyKind kind, const Sticks& sticks,
                       const std::vector<StickBc>& bcs, int levels) {
   torch::NoGradGuard no_grad;
-  const GraphHierarchy graph = build_hierarchy(kind, sticks, levels);
+  const MultilevelTensors graph = build_hierarchy(kind, sticks, levels);
   return model.forward(stick_inputs(sticks, bcs), {sticks.positions}, graph);
 }
 
@@ -292,8 +263,8 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
                       {"train_offset_range", {0.0, 1.0}},
                       {"test_draws_per_combo", o.test_draws},
                       {"seed", o.seed}};
-  const std::array<GraphHierarchy, 2> test_graphs{bistride_hierarchy(pair, o.levels),
-                                                  proximity_hierarchy(pair, o.levels)};
+  const std::array<MultilevelTensors, 2> test_graphs{bistride_multilevel(pair, o.levels),
+                                                     proximity_multilevel(pair, o.levels)};
   for (size_t m = 0; m < kModels.size(); ++m) {
     RmsAccumulator all, near, all_alone, near_alone;
     std::array<RmsAccumulator, 4> by_combo;
@@ -320,7 +291,7 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
     }
     Json combos = Json::object();
     for (size_t c = 0; c < kCombos.size(); ++c) combos[kCombos[c].name] = by_combo[c].value();
-    const GraphHierarchy& g = test_graphs[m];
+    const MultilevelTensors& g = test_graphs[m];
     const StickMixing mixing = stick_mixing(g, pair.stick);
     std::vector<int64_t> nodes_per_level, edges_per_level;
     for (int k = 0; k < g.num_levels(); ++k) {
@@ -395,93 +366,9 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
   metrics["wall_s"] = total.seconds();
 
   // --- markdown section
-  const Json& bs = metrics["models"]["bistride"];
-  const Json& px = metrics["models"]["proximity"];
-  std::ostringstream md;
-  md << "## Spatial proximity failure case: steady heat on two sticks (thesis Fig. 4.6)\n\n"
-     << "Steady 1-D heat conduction on sticks of length 1 with " << o.nodes
-     << " nodes (dx = " << format_number(dx)
-     << "): temperature T_d at one end, heat flux q at the other, "
-     << "exact solution T(s) = T_d + q s (s = distance from the Dirichlet end). Inputs per node: "
-     << "(is Dirichlet, is flux, value); output T. The same BSMS-GNN network (" << o.levels
-     << " levels, latent " << o.latent << ", same initial weights and training data) is trained "
-     << "for " << o.steps << " steps (batches of " << o.batch << " single sticks at a random "
-     << "offset, both orientations, T_d and q uniform in [-1, 1], Adam " << format_number(o.lr)
-     << " to " << format_number(o.lr_final)
-     << ") with two coarsenings: **bi-stride** (CloseCenter seeding) and "
-     << "**proximity** (MS-GNN-GRID style: grid cells of " << format_number(kProximityCellDx)
-     << " dx doubling per level, edges between neighbouring cells, mean down / broadcast up). "
-     << "Test: stick A on [0, 1] and stick B on [1 + " << format_number(o.gap) << " dx, 2 + "
-     << format_number(o.gap) << " dx], no heat crosses the gap, for the 4 orientation combinations "
-     << "(D = Dirichlet end, F = flux end, - = gap) x " << o.test_draws << " draws of T_d and q. "
-     << "\"Alone\": each test stick evaluated on its own graph; \"near gap\": the "
-     << std::count(near_gap.begin(), near_gap.end(), 1) << " nodes within "
-     << format_number(kNearGapDx) << " dx of the gap. " << threads << " thread(s), total "
-     << format_number(metrics["wall_s"].get<double>()) << " s.\n\n"
-     << "| coarsening | train RMSE | RMSE alone | RMSE two sticks | near gap alone | near gap two "
-        "sticks |";
-  for (const auto& c : kCombos) md << ' ' << c.name << " |";
-  md << " max abs(two sticks - alone) | cross-gap edges per level | train s "
-        "|\n|---|---|---|---|---|"
-        "---|";
-  for (size_t c = 0; c < kCombos.size(); ++c) md << "---|";
-  md << "---|---|---|\n";
-  for (const auto& spec : kModels) {
-    const Json& r = metrics["models"][spec.key];
-    md << "| " << spec.label << " | "
-       << format_number(r["train_rmse_final"], 2, Notation::kScientific) << " | "
-       << format_number(r["rmse_alone"], 2, Notation::kScientific) << " | "
-       << format_number(r["rmse_pair"], 2, Notation::kScientific) << " | "
-       << format_number(r["rmse_alone_near_gap"], 2, Notation::kScientific) << " | "
-       << format_number(r["rmse_pair_near_gap"], 2, Notation::kScientific) << " |";
-    for (const auto& c : kCombos)
-      md << ' ' << format_number(r["rmse_pair_by_combo"][c.name], 2, Notation::kScientific) << " |";
-    md << ' ' << format_number(r["max_abs_pair_minus_alone"], 2, Notation::kScientific) << " | "
-       << joined(r["test_hierarchy"]["cross_gap_edges_per_level"].get<std::vector<int64_t>>())
-       << " | " << format_number(r["train_wall_s"].get<double>()) << " |\n";
-  }
-  // The reading, from the figures above.
-  auto sum_of = [](const Json& r, const char* key) {
-    int64_t sum = 0;
-    for (const auto& n : r["test_hierarchy"][key]) sum += n.get<int64_t>();
-    return sum;
-  };
-  const bool bs_apart =
-      sum_of(bs, "cross_gap_edges_per_level") == 0 && sum_of(bs, "mixed_nodes_per_level") == 0;
-  const bool px_joined =
-      sum_of(px, "cross_gap_edges_per_level") > 0 || sum_of(px, "mixed_nodes_per_level") > 0;
-  const double ratio = px["rmse_pair_near_gap"].get<double>() /
-                       std::max(bs["rmse_pair_near_gap"].get<double>(), 1e-12);
-  const double bs_growth =
-      bs["rmse_pair"].get<double>() / std::max(bs["rmse_alone"].get<double>(), 1e-12);
-  md << "\n**Reading.** With bi-stride coarsening the two sticks "
-     << (bs_apart ? "stay separate at every level" : "are joined at some level") << ", and the "
-     << "two-stick prediction "
-     << (bs["max_abs_pair_minus_alone"].get<double>() < 1e-4 ? "equals" : "differs from")
-     << " the single-stick one (max difference "
-     << format_number(bs["max_abs_pair_minus_alone"], 2, Notation::kScientific)
-     << "; two-stick RMSE " << format_number(bs_growth, 2, Notation::kFixed)
-     << "x the single-stick RMSE); proximity "
-     << "coarsening " << (px_joined ? "joins" : "also keeps apart") << " the sticks (cross-gap "
-     << "edges per level: "
-     << joined(px["test_hierarchy"]["cross_gap_edges_per_level"].get<std::vector<int64_t>>())
-     << "; nodes shared by both sticks: "
-     << joined(px["test_hierarchy"]["mixed_nodes_per_level"].get<std::vector<int64_t>>())
-     << ") and its RMSE near the gap is " << format_number(ratio, 2, Notation::kFixed)
-     << "x the bi-stride model's ("
-     << format_number(px["rmse_pair_near_gap"], 2, Notation::kScientific) << " vs "
-     << format_number(bs["rmse_pair_near_gap"], 2, Notation::kScientific) << ", "
-     << (ratio >= 2.0  ? "markedly worse"
-         : ratio > 1.2 ? "somewhat worse"
-                       : "no clear difference")
-     << "; " << format_number(px["rmse_alone_near_gap"], 2, Notation::kScientific)
-     << " for the same sticks evaluated alone).\n\n";
-  if (plotted) {
-    md << "![heat_sticks](plots/heat_sticks.png)\n\n";
-  } else {
-    md << "_The plot was left out: gnuplot is not installed._\n\n";
-  }
-  write_text_atomic((out / "heat_sticks.md").string(), md.str());
+  const int64_t near_gap_nodes = std::count(near_gap.begin(), near_gap.end(), 1);
+  write_text_atomic((out / "heat_sticks.md").string(),
+                    heat_sticks_markdown(o, metrics, near_gap_nodes, threads, plotted));
   write_json_atomic((out / "metrics.json").string(), metrics);
   return metrics;
 }

@@ -39,4 +39,10 @@ void validate(const HeatSticksOptions& options);
 // stderr. Returns the metrics.
 Json run_heat_sticks(const HeatSticksOptions& options);
 
+// The report section (heat_sticks.md) from run_heat_sticks' metrics: setup, the table of both
+// models and the reading; `near_gap_nodes` test nodes within kNearGapDx of the gap; `plotted`:
+// whether plots/heat_sticks.png was drawn.
+std::string heat_sticks_markdown(const HeatSticksOptions& options, const Json& metrics,
+                                 int64_t near_gap_nodes, int threads, bool plotted);
+
 }  // namespace bsms

@@ -7,7 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/graph.hpp"
-#include "models/proximity_hierarchy.hpp"
+#include "models/proximity_multilevel.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {
@@ -88,7 +88,7 @@ torch::Tensor stick_solution(const Sticks& sticks, const std::vector<StickBc>& b
   return t;
 }
 
-GraphHierarchy bistride_hierarchy(const Sticks& sticks, int levels) {
+MultilevelTensors bistride_multilevel(const Sticks& sticks, int levels) {
   const auto n = static_cast<int64_t>(sticks.x.size());
   const auto e = sticks.edges.contiguous();
   std::vector<int64_t> pairs(e.data_ptr<int64_t>(), e.data_ptr<int64_t>() + e.numel());
@@ -96,15 +96,16 @@ GraphHierarchy bistride_hierarchy(const Sticks& sticks, int levels) {
   options.seeding = Seeding::kCloseCenter;
   options.num_levels = levels;
   const RowMatrixXd positions = Eigen::Map<const RowMatrixXd>(sticks.x.data(), n, 1);
-  return make_hierarchy(build_multilevel_graph(graph_from_pairs(n, pairs), positions, options));
+  return make_multilevel_tensors(
+      build_multilevel_graph(graph_from_pairs(n, pairs), positions, options));
 }
 
-GraphHierarchy proximity_hierarchy(const Sticks& sticks, int levels) {
-  return make_proximity_hierarchy(sticks.positions, sticks.edges, levels,
-                                  kProximityCellDx * sticks.dx());
+MultilevelTensors proximity_multilevel(const Sticks& sticks, int levels) {
+  return make_proximity_multilevel(sticks.positions, sticks.edges, levels,
+                                   kProximityCellDx * sticks.dx());
 }
 
-StickMixing stick_mixing(const GraphHierarchy& graph, const std::vector<int64_t>& stick) {
+StickMixing stick_mixing(const MultilevelTensors& graph, const std::vector<int64_t>& stick) {
   if (graph.num_levels() == 0 || static_cast<int64_t>(stick.size()) != graph.num_nodes(0)) {
     throw InputError("stick mixing: " + std::to_string(stick.size()) +
                      " stick labels for a graph of " +
@@ -116,7 +117,7 @@ StickMixing stick_mixing(const GraphHierarchy& graph, const std::vector<int64_t>
   for (int k = 0; k < graph.num_levels(); ++k) {
     if (k > 0) {
       // Coarse node c aggregates the fine nodes of row c of D.
-      const auto& t = graph.transitions[k - 1];
+      const auto& t = graph.transitions[k];
       const auto off = t.down_offsets.contiguous(), col = t.down_columns.contiguous();
       const int64_t* po = off.data_ptr<int64_t>();
       const int64_t* pc = col.data_ptr<int64_t>();

@@ -6,6 +6,7 @@
 
 #include <torch/types.h>
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -16,6 +17,31 @@ namespace bsms {
 
 // The level-1 grid cell of the proximity hierarchy, in units of dx: two nodes per cell on a stick.
 constexpr double kProximityCellDx = 2.0;
+
+// Nodes at most this many dx from the gap are the "near the gap" nodes of the metrics.
+constexpr double kNearGapDx = 3.0;
+
+// The two coarsenings compared.
+enum class HierarchyKind { kBiStride, kProximity };
+
+struct ModelSpec {
+  HierarchyKind kind;
+  const char* key;    // metrics.json and CSV name
+  const char* label;  // plots and tables
+};
+constexpr std::array<ModelSpec, 2> kModels{{{HierarchyKind::kBiStride, "bistride", "bi-stride"},
+                                            {HierarchyKind::kProximity, "proximity", "proximity"}}};
+
+// The four test configurations, A then B from left to right; "DF" = Dirichlet end left, flux end
+// right. The gap lies between the two middle letters.
+struct Combo {
+  const char* name;
+  bool a_dirichlet_left, b_dirichlet_left;
+};
+constexpr std::array<Combo, 4> kCombos{{{"DF-DF", true, true},
+                                        {"DF-FD", true, false},
+                                        {"FD-DF", false, true},
+                                        {"FD-FD", false, false}}};
 
 // Most levels a stick of `nodes` nodes supports: the coarsest bi-stride level keeps >= 2 nodes.
 int max_stick_levels(int64_t nodes);
@@ -48,9 +74,9 @@ torch::Tensor stick_inputs(const Sticks& sticks, const std::vector<StickBc>& bcs
 torch::Tensor stick_solution(const Sticks& sticks, const std::vector<StickBc>& bcs);
 
 // The two hierarchies compared: bi-stride with CloseCenter seeding (preprocess/), and proximity
-// with a level-1 cell of 2 dx (models/proximity_hierarchy.hpp).
-GraphHierarchy bistride_hierarchy(const Sticks& sticks, int levels);
-GraphHierarchy proximity_hierarchy(const Sticks& sticks, int levels);
+// with a level-1 cell of 2 dx (models/proximity_multilevel.hpp).
+MultilevelTensors bistride_multilevel(const Sticks& sticks, int levels);
+MultilevelTensors proximity_multilevel(const Sticks& sticks, int levels);
 
 // Level-0 nodes of which sticks each node of each level aggregates (through the down transitions),
 // as the range [lo, hi] of stick indices; a node with an empty row of D aggregates none.
@@ -60,7 +86,7 @@ struct StickMixing {
   std::vector<int64_t> mixed_nodes;        // [levels]
   std::vector<int64_t> cross_stick_edges;  // [levels]
 };
-StickMixing stick_mixing(const GraphHierarchy& graph, const std::vector<int64_t>& stick);
+StickMixing stick_mixing(const MultilevelTensors& graph, const std::vector<int64_t>& stick);
 
 // The network of both models: BsmsGnn, 3 inputs, 1 output (T), 1-D positions.
 GraphModelOptions heat_model_options(int levels, int64_t latent);

@@ -1,4 +1,4 @@
-#include "models/proximity_hierarchy.hpp"
+#include "models/proximity_multilevel.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
@@ -43,7 +43,7 @@ torch::Tensor chain_edges(int64_t n) {
 }
 
 // Checks every level of `h` against a brute-force grid coarsening of `positions` [N, d].
-void expect_matches_brute_force(const torch::Tensor& positions, const GraphHierarchy& h,
+void expect_matches_brute_force(const torch::Tensor& positions, const MultilevelTensors& h,
                                 double cell) {
   const int64_t dim = positions.size(1);
   std::vector<double> pos = rows_of(positions);
@@ -58,7 +58,7 @@ void expect_matches_brute_force(const torch::Tensor& positions, const GraphHiera
       }
       occupied.insert(key[i]);
     }
-    const auto& t = h.transitions[k - 1];
+    const auto& t = h.transitions[k];
     ASSERT_EQ(t.coarse_nodes, static_cast<int64_t>(occupied.size())) << "level " << k;
     ASSERT_EQ(h.num_nodes(k), t.coarse_nodes);
     EXPECT_FALSE(t.up_is_down_transpose);
@@ -123,11 +123,11 @@ void expect_matches_brute_force(const torch::Tensor& positions, const GraphHiera
   }
 }
 
-TEST(ProximityHierarchy, HandMadeLineMatchesCellsByHand) {
+TEST(ProximityMultilevel, HandMadeLineMatchesCellsByHand) {
   // Cells of 0.5: {-0.1} | {0, 0.1, 0.25} | {0.9} | {1.05}; then cells of 1: {-0.1}, {0.117, 0.9},
   // {1.05}.
   auto x = torch::tensor({0.0, 0.1, 0.25, 0.9, 1.05, -0.1}, torch::kFloat32).reshape({6, 1});
-  auto h = make_proximity_hierarchy(x, chain_edges(6), 3, 0.5);
+  auto h = make_proximity_multilevel(x, chain_edges(6), 3, 0.5);
   ASSERT_EQ(h.num_levels(), 3);
   EXPECT_EQ(h.num_nodes(0), 6);
   EXPECT_EQ(h.num_nodes(1), 4);
@@ -135,7 +135,7 @@ TEST(ProximityHierarchy, HandMadeLineMatchesCellsByHand) {
   EXPECT_EQ(edge_pairs(h.edge_sets[0][0]), edge_pairs(EdgeIndex::from_pairs(chain_edges(6), 6)));
   EXPECT_EQ(edge_pairs(h.edge_sets[1][0]), (Pairs{{0, 1}, {1, 0}, {1, 2}, {2, 1}, {2, 3}, {3, 2}}));
   EXPECT_EQ(edge_pairs(h.edge_sets[2][0]), (Pairs{{0, 1}, {1, 0}, {1, 2}, {2, 1}}));
-  auto p1 = rows_of(transition_down(x, h.transitions[0]));
+  auto p1 = rows_of(transition_down(x, h.transitions[1]));
   EXPECT_NEAR(p1[0], -0.1, 1e-6);
   EXPECT_NEAR(p1[1], 0.35 / 3.0, 1e-6);
   EXPECT_NEAR(p1[2], 0.9, 1e-6);
@@ -143,7 +143,7 @@ TEST(ProximityHierarchy, HandMadeLineMatchesCellsByHand) {
   expect_matches_brute_force(x, h, 0.5);
 }
 
-TEST(ProximityHierarchy, RandomPointSetsMatchBruteForce) {
+TEST(ProximityMultilevel, RandomPointSetsMatchBruteForce) {
   torch::manual_seed(3);
   for (int64_t dim = 1; dim <= 3; ++dim) {
     for (int trial = 0; trial < 4; ++trial) {
@@ -151,7 +151,7 @@ TEST(ProximityHierarchy, RandomPointSetsMatchBruteForce) {
       auto x = (torch::rand({n, dim}) * 4.0 - 1.5).to(torch::kFloat32);
       auto edges = torch::randint(0, n, {2 * n, 2}, torch::kInt64);
       const double cell = 0.3 + 0.2 * trial;
-      auto h = make_proximity_hierarchy(x, edges, 4, cell);
+      auto h = make_proximity_multilevel(x, edges, 4, cell);
       ASSERT_EQ(h.num_levels(), 4);
       EXPECT_EQ(h.edge_sets[0][0].num_edges(), 2 * n);  // level 0: the mesh edges as given
       SCOPED_TRACE("dim " + std::to_string(dim) + ", trial " + std::to_string(trial));
@@ -160,11 +160,12 @@ TEST(ProximityHierarchy, RandomPointSetsMatchBruteForce) {
   }
 }
 
-TEST(ProximityHierarchy, TransfersAndGradientsMatchDenseMatrices) {
+TEST(ProximityMultilevel, TransfersAndGradientsMatchDenseMatrices) {
   torch::manual_seed(4);
   auto x = torch::rand({30, 2}) * 3.0;
-  auto h = make_proximity_hierarchy(x, torch::zeros({0, 2}, torch::kInt64), 3, 0.4);
-  for (const auto& t : h.transitions) {
+  auto h = make_proximity_multilevel(x, torch::zeros({0, 2}, torch::kInt64), 3, 0.4);
+  for (size_t k = 1; k < h.transitions.size(); ++k) {
+    const auto& t = h.transitions[k];
     // Dense D [coarse, fine] and U [fine, coarse] from the CSR arrays.
     auto d = torch::zeros({t.coarse_nodes, t.fine_nodes});
     auto u = torch::zeros({t.fine_nodes, t.coarse_nodes});
@@ -188,48 +189,48 @@ TEST(ProximityHierarchy, TransfersAndGradientsMatchDenseMatrices) {
   }
 }
 
-TEST(ProximityHierarchy, MergesAsABatch) {
+TEST(ProximityMultilevel, MergesAsABatch) {
   auto x1 = torch::tensor({0.0, 0.3, 0.6, 0.9}, torch::kFloat32).reshape({4, 1});
   auto x2 = torch::tensor({5.0, 5.2}, torch::kFloat32).reshape({2, 1});
-  auto h1 = make_proximity_hierarchy(x1, chain_edges(4), 3, 0.5);
-  auto h2 = make_proximity_hierarchy(x2, chain_edges(2), 3, 0.5);
-  auto merged = merge_hierarchies({&h1, &h2});
+  auto h1 = make_proximity_multilevel(x1, chain_edges(4), 3, 0.5);
+  auto h2 = make_proximity_multilevel(x2, chain_edges(2), 3, 0.5);
+  auto merged = merge_multilevel_tensors({&h1, &h2});
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(merged.node_offsets[k],
               (std::vector<int64_t>{0, h1.num_nodes(k), h1.num_nodes(k) + h2.num_nodes(k)}));
   }
   for (int k = 0; k < 2; ++k) {
-    EXPECT_FALSE(merged.transitions[k].up_is_down_transpose);
+    EXPECT_FALSE(merged.transitions[k + 1].up_is_down_transpose);
     auto v = torch::randn({merged.num_nodes(k), 3});
-    auto expected = torch::cat({transition_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k]),
-                                transition_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k])});
-    EXPECT_TRUE(torch::allclose(transition_down(v, merged.transitions[k]), expected));
+    auto expected = torch::cat({transition_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k + 1]),
+                                transition_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k + 1])});
+    EXPECT_TRUE(torch::allclose(transition_down(v, merged.transitions[k + 1]), expected));
   }
 }
 
-TEST(ProximityHierarchy, RejectsBadInput) {
+TEST(ProximityMultilevel, RejectsBadInput) {
   auto x = torch::rand({5, 2});
   auto e = chain_edges(5);
-  EXPECT_THROW(make_proximity_hierarchy(torch::rand({5}), e, 2, 0.5), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(torch::rand({0, 2}), e, 2, 0.5), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(torch::rand({5, 4}), e, 2, 0.5), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(torch::ones({5, 2}, torch::kInt64), e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(torch::rand({5}), e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(torch::rand({0, 2}), e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(torch::rand({5, 4}), e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(torch::ones({5, 2}, torch::kInt64), e, 2, 0.5), InputError);
   auto bad = x.clone();
   bad[2][1] = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_THROW(make_proximity_hierarchy(bad, e, 2, 0.5), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, e, 0, 0.5), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, e, 2, 0.0), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, e, 2, -1.0), InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, e, 2, std::numeric_limits<double>::infinity()),
+  EXPECT_THROW(make_proximity_multilevel(bad, e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(x, e, 0, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(x, e, 2, 0.0), InputError);
+  EXPECT_THROW(make_proximity_multilevel(x, e, 2, -1.0), InputError);
+  EXPECT_THROW(make_proximity_multilevel(x, e, 2, std::numeric_limits<double>::infinity()),
                InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, e.to(torch::kFloat32), 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(x, e.to(torch::kFloat32), 2, 0.5), InputError);
   EXPECT_THROW(
-      make_proximity_hierarchy(x, torch::tensor({0, 5}, torch::kInt64).reshape({1, 2}), 2, 0.5),
+      make_proximity_multilevel(x, torch::tensor({0, 5}, torch::kInt64).reshape({1, 2}), 2, 0.5),
       InputError);
-  EXPECT_THROW(make_proximity_hierarchy(x, torch::zeros({3, 3}, torch::kInt64), 2, 0.5),
+  EXPECT_THROW(make_proximity_multilevel(x, torch::zeros({3, 3}, torch::kInt64), 2, 0.5),
                InputError);
   try {
-    make_proximity_hierarchy(x, e, 2, 0.0);
+    make_proximity_multilevel(x, e, 2, 0.0);
   } catch (const InputError& err) {
     EXPECT_NE(std::string(err.what()).find("cell_size"), std::string::npos) << err.what();
   }

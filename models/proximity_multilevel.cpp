@@ -1,4 +1,4 @@
-#include "models/proximity_hierarchy.hpp"
+#include "models/proximity_multilevel.hpp"
 
 #include <array>
 #include <cmath>
@@ -103,7 +103,7 @@ GridLevel coarsen_by_grid(const std::vector<double>& fine, int64_t n, int64_t di
 
 }  // namespace
 
-GraphHierarchy make_proximity_hierarchy(const torch::Tensor& positions,
+MultilevelTensors make_proximity_multilevel(const torch::Tensor& positions,
                                         const torch::Tensor& level0_edges, int num_levels,
                                         double cell_size) {
   const std::string where = "proximity hierarchy: ";
@@ -137,9 +137,10 @@ GraphHierarchy make_proximity_hierarchy(const torch::Tensor& positions,
     }
   }
 
-  GraphHierarchy h;
+  MultilevelTensors h;
   h.edge_sets.push_back({EdgeIndex::from_pairs(level0_edges, n)});
   h.node_offsets.push_back({0, n});
+  h.transitions.emplace_back();  // level 0 has no transition (graph_tensors.hpp)
   int64_t nodes = n;
   for (int k = 1; k < num_levels; ++k) {
     GridLevel level = coarsen_by_grid(pos, nodes, dim, std::ldexp(cell_size, k - 1));
