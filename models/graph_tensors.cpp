@@ -331,10 +331,13 @@ MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTen
   return out;
 }
 
-const MultilevelTensors& MultilevelTensorCache::get(const std::string& key, const MultilevelGraph& graph) {
+const MultilevelTensors& MultilevelTensorCache::get(const std::string& key,
+                                                    const MultilevelGraph& graph) {
   auto it = single_.find(key);
   if (it == single_.end()) {
-    it = single_.emplace(key, std::make_shared<MultilevelTensors>(make_multilevel_tensors(graph, max_levels_)))
+    it = single_
+             .emplace(key, std::make_shared<MultilevelTensors>(
+                               make_multilevel_tensors(graph, max_levels_)))
              .first;
   }
   return *it->second;

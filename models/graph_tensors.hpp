@@ -54,7 +54,7 @@ struct LevelTransition {
 
 // The tensors a model needs for one graph or a block-diagonal batch of graphs.
 struct MultilevelTensors {
-  std::vector<std::vector<EdgeIndex>> edge_sets;   // [level][set]; set 0 = mesh edges
+  std::vector<std::vector<EdgeIndex>> edge_sets;  // [level][set]; set 0 = mesh edges
   // [level]: transitions[k] joins level k - 1 (fine) and level k (coarse), the convention of
   // preprocess/ and of the multilevel file (level k holds its pooled nodes and down weights);
   // transitions[0] is empty. Size num_levels.

@@ -104,8 +104,8 @@ GridLevel coarsen_by_grid(const std::vector<double>& fine, int64_t n, int64_t di
 }  // namespace
 
 MultilevelTensors make_proximity_multilevel(const torch::Tensor& positions,
-                                        const torch::Tensor& level0_edges, int num_levels,
-                                        double cell_size) {
+                                            const torch::Tensor& level0_edges, int num_levels,
+                                            double cell_size) {
   const std::string where = "proximity hierarchy: ";
   if (positions.dim() != 2 || positions.size(0) < 1 || positions.size(1) < 1 ||
       positions.size(1) > 3 || !positions.is_floating_point()) {

@@ -18,10 +18,10 @@ namespace bsms {
 //   directions, no self loops);
 // - transition k -> k+1: down = mean of the members (weight 1 / count), up = broadcast of the
 //   cell's value to each member (weight 1); up_is_down_transpose is false.
-// One graph (node_offsets {0, N_k}), ready for merge_multilevel_tensors(). InputError on a bad shape,
-// non-finite positions, edges outside [0, N), num_levels < 1 or cell_size not positive.
+// One graph (node_offsets {0, N_k}), ready for merge_multilevel_tensors(). InputError on a bad
+// shape, non-finite positions, edges outside [0, N), num_levels < 1 or cell_size not positive.
 MultilevelTensors make_proximity_multilevel(const torch::Tensor& positions,
-                                        const torch::Tensor& level0_edges, int num_levels,
-                                        double cell_size);
+                                            const torch::Tensor& level0_edges, int num_levels,
+                                            double cell_size);
 
 }  // namespace bsms

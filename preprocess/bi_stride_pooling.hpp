@@ -16,8 +16,8 @@ namespace bsms {
 std::vector<int64_t> bi_stride_pool(const CsrGraph& graph, const ClusterNodes& clusters,
                                     const std::vector<int64_t>& seeds);
 
-// ((A + I)^2 without the diagonal)[pooled, pooled]: pooled nodes (ascending) joined when within two hops
-// in `graph`. Row r of the result is pooled[r]. Deterministic for any thread count.
+// ((A + I)^2 without the diagonal)[pooled, pooled]: pooled nodes (ascending) joined when within two
+// hops in `graph`. Row r of the result is pooled[r]. Deterministic for any thread count.
 CsrGraph enhance_adjacency(const CsrGraph& graph, const std::vector<int64_t>& pooled);
 
 struct TransitionWeights {

@@ -16,7 +16,7 @@ struct MeshGraphs {
   std::string key;              // hash of the mesh topology (cells and node count)
   MultilevelGraph multilevel;   // exactly `levels` levels
   bool from_cache = false;      // read from a cache folder rather than built
-  MultilevelTensors hierarchy;     // tensors of `multilevel`, mesh edges only
+  MultilevelTensors hierarchy;  // tensors of `multilevel`, mesh edges only
   RowMatrixXd mesh_pos;         // [N, dim] reference positions
   double mean_edge_length = 0;  // over mesh edges, in mesh_pos units
 };

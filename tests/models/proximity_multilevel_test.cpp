@@ -202,8 +202,9 @@ TEST(ProximityMultilevel, MergesAsABatch) {
   for (int k = 0; k < 2; ++k) {
     EXPECT_FALSE(merged.transitions[k + 1].up_is_down_transpose);
     auto v = torch::randn({merged.num_nodes(k), 3});
-    auto expected = torch::cat({transition_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k + 1]),
-                                transition_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k + 1])});
+    auto expected =
+        torch::cat({transition_down(v.slice(0, 0, h1.num_nodes(k)), h1.transitions[k + 1]),
+                    transition_down(v.slice(0, h1.num_nodes(k)), h2.transitions[k + 1])});
     EXPECT_TRUE(torch::allclose(transition_down(v, merged.transitions[k + 1]), expected));
   }
 }
@@ -214,7 +215,8 @@ TEST(ProximityMultilevel, RejectsBadInput) {
   EXPECT_THROW(make_proximity_multilevel(torch::rand({5}), e, 2, 0.5), InputError);
   EXPECT_THROW(make_proximity_multilevel(torch::rand({0, 2}), e, 2, 0.5), InputError);
   EXPECT_THROW(make_proximity_multilevel(torch::rand({5, 4}), e, 2, 0.5), InputError);
-  EXPECT_THROW(make_proximity_multilevel(torch::ones({5, 2}, torch::kInt64), e, 2, 0.5), InputError);
+  EXPECT_THROW(make_proximity_multilevel(torch::ones({5, 2}, torch::kInt64), e, 2, 0.5),
+               InputError);
   auto bad = x.clone();
   bad[2][1] = std::numeric_limits<float>::quiet_NaN();
   EXPECT_THROW(make_proximity_multilevel(bad, e, 2, 0.5), InputError);

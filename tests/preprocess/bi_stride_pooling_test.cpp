@@ -48,7 +48,8 @@ TEST(EnhanceAdjacency, EqualsDenseFormula) {
   for (const auto& g : test::random_test_graphs(30, 200, 41)) {
     SCOPED_TRACE(g.name);
     const ClusterNodes clusters = clusters_of(g.graph);
-    const auto pooled = bi_stride_pool(g.graph, clusters, close_center_seeds(clusters, g.positions));
+    const auto pooled =
+        bi_stride_pool(g.graph, clusters, close_center_seeds(clusters, g.positions));
     const CsrGraph coarse = enhance_adjacency(g.graph, pooled);
     ASSERT_EQ(test::csr_problem(coarse), "");
     auto a = test::dense_plus_identity(test::dense_adjacency(g.graph));
