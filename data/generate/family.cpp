@@ -4,7 +4,7 @@
 
 #include "core/error.hpp"
 #include "data/generate/families/samplers.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms::generate {
 

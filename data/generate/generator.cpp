@@ -20,7 +20,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_builder.hpp"
 #include "data/mpm/solver.hpp"
 
 namespace bsms::generate {

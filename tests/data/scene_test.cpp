@@ -13,6 +13,8 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "data/mpm/scene_builder.hpp"
+#include "data/mpm/scene_size.hpp"
 #include "data/mpm/simulation.hpp"
 
 namespace bsms::mpm {
