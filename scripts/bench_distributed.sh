@@ -24,7 +24,7 @@ work=$root/runs/bench-distributed
 mkdir -p "$work"
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//'), $(nproc) cores; load: $(cut -d' ' -f1-3 /proc/loadavg)"
 if [[ ! -f $work/data/train.h5 ]]; then
-  "$bsms" generate "$root/configs/scenes/disks2d.json" --out "$work/data" --trajectories 8 \
+  "$bsms" generate "$root/configs/families/disks2d.json" --out "$work/data" --trajectories 8 \
     --split 6:1:1 --set frames=24 --threads 2 >"$work/generate.log" 2>&1
 fi
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The end-to-end demo on the default scene family (configs/scenes/disks2d.json):
+# The end-to-end demo on the default scene family (configs/families/disks2d.json):
 # generate a small dataset with the UMLS-MPM solver, preprocess its meshes into bi-stride
 # multilevel graphs, train BSMS-GNN and MeshGraphNets for the same wall-clock budget each, roll
 # both out on the test split and write OUT_DIR/report.md with plots.
@@ -31,7 +31,7 @@ stage "bsms preprocess: bi-stride multilevel graph of the plate with holes (MinA
   --out "$out_dir/plate_multilevel.h5" --seeding minave --levels auto --threads "$threads"
 
 stage "bsms generate: $trajectories disks2d trajectories (80:10:10) with UMLS-MPM"
-"$bsms" generate "$root/configs/scenes/disks2d.json" --out "$data" \
+"$bsms" generate "$root/configs/families/disks2d.json" --out "$data" \
   --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads"
 "$bsms" info "$data/train.h5"
 

@@ -26,7 +26,7 @@ bsms=$build_dir/bsms
 threads=${HARDCASES_THREADS:-0}
 count=${HARDCASES_TRAJECTORIES:-3}
 seeding_count=${HARDCASES_SEEDING_TRAJECTORIES:-20}
-family=$root/configs/scenes/disks2d.json
+family=$root/configs/families/disks2d.json
 mkdir -p "$out_dir"
 start=$(date +%s)
 stage() { echo; echo "== [$(( $(date +%s) - start )) s] $*"; }

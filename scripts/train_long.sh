@@ -24,7 +24,7 @@ data=$out_dir/data
 mkdir -p "$out_dir"
 
 # generate resumes by itself (same command, same folder).
-"$bsms" generate "$root/configs/scenes/disks2d.json" --out "$data" \
+"$bsms" generate "$root/configs/families/disks2d.json" --out "$data" \
   --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads"
 "$bsms" preprocess --data "$data" --seeding minave --levels auto --threads "$threads"
 

@@ -79,7 +79,7 @@ BSMS_COMMAND(
     [](CLI::App& sub) {
       auto o = std::make_shared<GenerateCliOptions>();
       sub.add_option("inputs", o->inputs,
-                     "family config (configs/scenes/disks2d.json, ...), or with --merge the "
+                     "family config (configs/families/disks2d.json, ...), or with --merge the "
                      "shard output folders")
           ->required();
       sub.add_option("--out", o->out, "output folder: train.h5, valid.h5, test.h5, generate.json")

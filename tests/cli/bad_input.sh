@@ -49,7 +49,7 @@ setup() {
   cd "$tmp"
   export OMP_WAIT_POLICY=PASSIVE
   # A tiny dataset (3 trajectories of 6 frames, one per split) and a run trained 3 steps on it.
-  "$bsms" generate "$src/configs/scenes/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
+  "$bsms" generate "$src/configs/families/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
     --set frames=6 --set 'sample.count=[2,2]' --threads 1 >/dev/null 2>&1
   # run.json names the data by its final path; training here reads it where it is now.
   printf '{"data": "%s", "steps": 3, "valid_every": 2, "valid_samples": 2, "normalizer_steps": 2, "model": {"type": "bsms", "latent": 8, "levels": 2}, "optimizer": {"warmup_steps": 1}}\n' \
@@ -138,9 +138,9 @@ EOF
   printf '{"data": "%s", "steps": 3, "model": {"type": "bsms", "levels": 40}}\n' "$in/data" >train_too_many_levels.json
   printf '{"steps": 3, "model": {"type": "bsms"}}\n' >train_no_data.json
   # A family with a defect.
-  sed 's/"frame_dt": 0.04/"frame_dt": -0.04/' "$src/configs/scenes/disks2d.json" >family_negative_dt.json
+  sed 's/"frame_dt": 0.04/"frame_dt": -0.04/' "$src/configs/families/disks2d.json" >family_negative_dt.json
   printf '{"family": "disks", ' >family_broken.json
-  sed 's/"family": "disks"/"family": "teapots"/' "$src/configs/scenes/disks2d.json" >family_unknown.json
+  sed 's/"family": "disks"/"family": "teapots"/' "$src/configs/families/disks2d.json" >family_unknown.json
 
   chmod -R a-w "$tmp"/run "$tmp"/data 2>/dev/null || true  # (root ignores it; documents intent)
   cd "$work"

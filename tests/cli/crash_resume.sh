@@ -48,7 +48,7 @@ start=$(now_ms)
 
 # A tiny dataset (3 trajectories of 8 frames, one per split); the crashing runs train on a copy
 # without the multilevel cache, so that they build it (and are killed doing so).
-"$bsms" generate "$src/configs/scenes/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
+"$bsms" generate "$src/configs/families/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
   --set frames=8 --set 'sample.count=[2,2]' --threads 1 >generate.log 2>&1 ||
   { cat generate.log; fail "bsms generate"; }
 cp -r data data_crash

@@ -28,7 +28,7 @@ rm -rf "$work"
 mkdir -p "$work"
 cd "$work" || exit 1
 
-"$bsms" generate "$src/configs/scenes/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
+"$bsms" generate "$src/configs/families/disks2d.json" --out data --trajectories 3 --split 1:1:1 \
   --set frames=8 --set 'sample.count=[2,2]' --threads 1 >generate.log 2>&1 ||
   { cat generate.log; fail "bsms generate"; }
 [ "$("$bsms" info data | grep -c ': bsms dataset')" = 3 ] ||

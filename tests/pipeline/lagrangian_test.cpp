@@ -376,21 +376,21 @@ TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
       std::string::npos);
   EXPECT_NE(why("{" + box + ", " + walls + "}", false).find("wall"), std::string::npos);
   EXPECT_NE(why(R"({"background": {"type": "mesh"}})").find("box"), std::string::npos);
-  // The shipped default scene and the cantilever.
-  const std::string root = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
+  // The shipped default scene family and the cantilever scene.
+  const std::string root = std::string(BSMS_SOURCE_DIR) + "/configs/";
   auto file = [](const std::string& path) {
     std::ifstream in(path);
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
-  EXPECT_EQ(why(file(root + "disks2d.json")), "");
-  EXPECT_NE(why(file(root + "cantilever.json")), "");
+  EXPECT_EQ(why(file(root + "families/disks2d.json")), "");
+  EXPECT_NE(why(file(root + "scenes/cantilever.json")), "");
 }
 
 // The physics the projection relies on: in UMLS-MPM (FLIP) trajectories of the default scene,
 // the true accelerations of free groups conserve linear momentum to float round-off, and angular
 // momentum to a few per cent (FLIP is not exactly angular-momentum conserving).
 TEST(MomentumProjection, MpmDisksConserveMomentumOnFreeGroups) {
-  const std::string family_file = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/disks2d.json";
+  const std::string family_file = std::string(BSMS_SOURCE_DIR) + "/configs/families/disks2d.json";
   const generate::FamilyConfig family = generate::load_family(family_file, {"frames=12"});
   std::ifstream in(family_file);
   const std::string scene_json((std::istreambuf_iterator<char>(in)), {});

@@ -22,14 +22,14 @@ namespace fs = std::filesystem;
 using namespace bsms;
 using namespace bsms::generate;
 
-const std::string kScenes = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
+const std::string kFamilies = std::string(BSMS_SOURCE_DIR) + "/configs/families/";
 
 // A small disks family: few frames, coarse meshes, so a trajectory takes a fraction of a second.
 FamilyConfig small_disks(std::vector<std::string> extra = {}) {
   std::vector<std::string> sets = {"frames=6", "sample.count=[2, 3]", "sample.spacing=0.04",
                                    "scene.background.element_size=0.06"};
   sets.insert(sets.end(), extra.begin(), extra.end());
-  return load_family(kScenes + "disks2d.json", sets);
+  return load_family(kFamilies + "disks2d.json", sets);
 }
 
 std::string input_error(const std::string& file, const std::vector<std::string>& sets) {
@@ -125,7 +125,7 @@ TEST(Family, DrawsArePinnedForAFixedSeed) {
   const fs::path work = fresh_dir("pinned");
   fs::create_directories(work);
   auto draw = [&](const std::string& name, uint64_t next_after) {
-    const FamilyConfig family = load_family(kScenes + name);
+    const FamilyConfig family = load_family(kFamilies + name);
     Rng rng(static_cast<uint64_t>(trajectory_seed(1, 0, 0)));
     const SampledScene s = family.sampler->sample(rng, (work / "union").string());
     EXPECT_EQ(rng.next(), next_after) << name << ": a different number of draws";
@@ -152,12 +152,11 @@ TEST(Family, DrawsArePinnedForAFixedSeed) {
   fs::remove_all(work);
 }
 
+// Every file in configs/families/ is a family (scenes of `bsms simulate` are in configs/scenes/).
 TEST(Family, EveryShippedFamilyParses) {
   int count = 0;
-  for (const auto& entry : fs::directory_iterator(kScenes)) {
+  for (const auto& entry : fs::directory_iterator(kFamilies)) {
     if (entry.path().extension() != ".json") continue;
-    const Json j = load_json_file(entry.path().string());
-    if (!j.contains("family")) continue;
     EXPECT_NO_THROW(load_family(entry.path().string())) << entry.path();
     ++count;
   }
@@ -165,7 +164,7 @@ TEST(Family, EveryShippedFamilyParses) {
 }
 
 TEST(Family, DiskDrawsAreDeterministicInRangeAndDisjoint) {
-  const FamilyConfig family = load_family(kScenes + "disks2d.json");
+  const FamilyConfig family = load_family(kFamilies + "disks2d.json");
   std::set<int> counts;
   for (int64_t i = 0; i < 300; ++i) {
     Rng r1(static_cast<uint64_t>(trajectory_seed(1, i, 0)));
@@ -205,7 +204,7 @@ TEST(Family, DiskDrawsAreDeterministicInRangeAndDisjoint) {
 }
 
 TEST(Family, BadConfigsNameFileAndKey) {
-  const std::string disks = kScenes + "disks2d.json";
+  const std::string disks = kFamilies + "disks2d.json";
   std::string m = input_error(disks, {"sample.radius=[0.2, 0.1]"});
   EXPECT_NE(m.find("disks2d.json"), std::string::npos) << m;
   EXPECT_NE(m.find("sample.radius"), std::string::npos) << m;
@@ -228,11 +227,11 @@ TEST(Family, BadConfigsNameFileAndKey) {
   EXPECT_NE(m.find("poisson_ratio"), std::string::npos) << m;
   m = input_error(disks, {"sample.radius=0.6"});
   EXPECT_NE(m.find("sample.radius"), std::string::npos) << m;
-  m = input_error(kScenes + "cantilever2d.json", {"sample.length=[1.0, 0.5]"});
+  m = input_error(kFamilies + "cantilever2d.json", {"sample.length=[1.0, 0.5]"});
   EXPECT_NE(m.find("sample.length"), std::string::npos) << m;
-  m = input_error(kScenes + "press2d.json", {"sample.plate_thickness=-0.2"});
+  m = input_error(kFamilies + "press2d.json", {"sample.plate_thickness=-0.2"});
   EXPECT_NE(m.find("sample.plate_thickness"), std::string::npos) << m;
-  m = input_error(kScenes + "union2d.json", {"sample.gap=[0.05, 0.01]"});
+  m = input_error(kFamilies + "union2d.json", {"sample.gap=[0.05, 0.01]"});
   EXPECT_NE(m.find("sample.gap"), std::string::npos) << m;
 }
 
@@ -446,7 +445,7 @@ TEST(Generate, UnstableDrawsAreReplacedDeterministically) {
 TEST(Generate, EveryFamilyMakesATrajectory) {
   for (const char* name : {"press2d.json", "cantilever2d.json", "union2d.json"}) {
     SCOPED_TRACE(name);
-    const FamilyConfig family = load_family(kScenes + name, {"frames=3", "frame_dt=0.005"});
+    const FamilyConfig family = load_family(kFamilies + name, {"frames=3", "frame_dt=0.005"});
     const fs::path work = fresh_dir(std::string("family_") + name);
     fs::create_directories(work);
     const Trajectory t = generate_trajectory(family, 1, 0, 5, (work / "traj_0").string());
@@ -497,7 +496,7 @@ TEST(Generate, EveryFamilyMakesATrajectory) {
 // dimension was read past its end by the samplers (heap-buffer-overflow under ASan).
 TEST(Family, FuzzShortBackgroundCornerIsAnInputError) {
   for (const char* family : {"disks2d.json", "press2d.json", "cantilever2d.json"}) {
-    const std::string m = input_error(kScenes + family, {"scene.background.min=[0]"});
+    const std::string m = input_error(kFamilies + family, {"scene.background.min=[0]"});
     EXPECT_NE(m.find("scene.background"), std::string::npos) << family << ": " << m;
   }
 }

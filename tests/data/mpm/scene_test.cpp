@@ -23,7 +23,7 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kScenes = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
-const std::string kBad = std::string(BSMS_SOURCE_DIR) + "/tests/data/scenes/";
+const std::string kBad = std::string(BSMS_SOURCE_DIR) + "/tests/data/mpm/scenes/";
 
 std::string input_error(const std::string& path, const std::vector<std::string>& sets = {}) {
   try {
@@ -36,12 +36,11 @@ std::string input_error(const std::string& path, const std::vector<std::string>&
 }
 
 TEST(Scene, EveryShippedSceneParsesAndBuilds) {
-  // Scenes of `bsms simulate`; dataset family files beside them are parsed by tests/generate.
+  // Every file in configs/scenes/ is a scene of `bsms simulate` (dataset families are in
+  // configs/families/, parsed by tests/data/generate).
   int count = 0;
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;
-    if (load_json_file(entry.path().string()).contains("family"))
-      continue;  // dataset families (generate)
     // Parsed and built (gmsh meshing, particles seeded at body nodes inside the background).
     try {
       const Scene scene = load_scene(entry.path().string());
@@ -103,7 +102,6 @@ TEST(Scene, HugeScenesAreRefusedBeforeMeshing) {
 TEST(Scene, SizeEstimatesMatchTheBuiltShippedScenes) {
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;
-    if (load_json_file(entry.path().string()).contains("family")) continue;
     const Scene scene = load_scene(entry.path().string());
     const SceneEstimate e = estimate_scene(scene);
     double particles = 0.0, nodes = 0.0;
