@@ -15,7 +15,7 @@
 #include "core/graph.hpp"
 #include "core/radius_search.hpp"
 #include "data/generate/family.hpp"
-#include "data/generate/generator.hpp"
+#include "data/generate/trajectory_solver.hpp"
 #include "models/layers.hpp"
 #include "pipeline/train_config.hpp"
 #include "plate_data.hpp"

@@ -15,6 +15,7 @@
 #include "data/dataset/dataset.hpp"
 #include "data/generate/family.hpp"
 #include "data/generate/generator.hpp"
+#include "data/generate/trajectory_solver.hpp"
 
 namespace {
 
