@@ -76,7 +76,7 @@ fuzz: deps
 	CC=clang CXX=clang++ cmake -S . -B build-fuzz -DBSMS_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo
 	cmake --build build-fuzz -j $(JOBS) --target $(FUZZ_TARGETS) fuzz_gmsh_mesh
 	for t in $(FUZZ_TARGETS); do mkdir -p $(FUZZ_CORPUS)/$$t $(RUNS)/fuzz-crashes/$$t; done
-	cp configs/train/*.json configs/scenes/*.json configs/families/*.json tests/data/scenes/*.json $(FUZZ_CORPUS)/fuzz_config/
+	cp configs/train/*.json configs/scenes/*.json configs/families/*.json tests/data/mpm/scenes/*.json $(FUZZ_CORPUS)/fuzz_config/
 	{ cat configs/train/disks2d-bsms.json; printf '\0model.latent=64\0features.strain=off\0optimizer.lr=0.5'; } \
 	  > $(FUZZ_CORPUS)/fuzz_config/set_train.json
 	{ cat configs/scenes/colliding_disks.json; printf '\0bodies.0.spacing=0.05\0solver.kernel=bspline'; } \
@@ -108,7 +108,7 @@ sanitize: deps
 
 # ThreadSanitizer on the OpenMP kernels (core, preprocess, solver tests; clang + LLVM's OpenMP with
 # its Archer tool, so that OpenMP's own synchronisation is visible to TSan: GCC's libgomp is not).
-TSAN_TESTS ?= test_core test_preprocess test_data
+TSAN_TESTS ?= test_core test_preprocess test_mpm
 sanitize-thread: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev libomp-14-dev"
 	CC=clang CXX=clang++ cmake -S . -B build-tsan -DBSMS_SANITIZE=thread -DCMAKE_BUILD_TYPE=RelWithDebInfo \

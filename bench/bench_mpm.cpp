@@ -7,7 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/runtime.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_builder.hpp"
 
 namespace {
 

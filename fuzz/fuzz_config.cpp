@@ -16,7 +16,8 @@
 #include "core/config.hpp"
 #include "core/error.hpp"
 #include "data/generate/family.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_config.hpp"
+#include "data/mpm/scene_size.hpp"
 #include "pipeline/train_config.hpp"
 #include "seeds.hpp"
 

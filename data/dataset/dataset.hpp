@@ -55,7 +55,13 @@ struct FieldInfo {
   int64_t width = 0;  // components per node
 };
 
-// Writes a bsms dataset file atomically (temporary name, renamed by commit()).
+// The root attributes that mark a bsms dataset file (format, version), and the static datasets of
+// a trajectory: cells, mesh_pos, node_type, body_id (every other one is a field [T, N(, width)]).
+constexpr const char* kDatasetFormat = "bsms-dataset";
+constexpr int64_t kDatasetVersion = 1;
+bool is_static_field(const std::string& name);
+
+// Writes a bsms dataset file atomically (temporary name, renamed by commit()); dataset_writer.cpp.
 class DatasetWriter {
  public:
   DatasetWriter(const std::string& path, const std::string& scene_json, int dim, double frame_dt);
@@ -82,7 +88,7 @@ enum class DatasetLayout {
 };
 const char* layout_name(DatasetLayout layout);  // e.g. "MeshGraphNets TFRecord"
 
-// Random access to (trajectory, frame) of one split.
+// Random access to (trajectory, frame) of one split, in any layout above; dataset.cpp.
 class Dataset {
  public:
   // `location` is a bsms dataset file (e.g. DIR/train.h5), a single-file public {split}.h5, a

@@ -11,11 +11,8 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <mutex>
-#include <nlohmann/json.hpp>
-#include <sstream>
 
 #ifdef __SSE4_2__
 #include <nmmintrin.h>
@@ -31,7 +28,6 @@ using google::protobuf::internal::WireFormatLite;
 using google::protobuf::io::CodedInputStream;
 
 constexpr uint32_t kCastagnoli = 0x82F63B78u;  // reflected polynomial
-constexpr int64_t kMaxElements = int64_t{1} << 48;
 
 struct CrcTable {
   uint32_t t[256];
@@ -75,202 +71,6 @@ uint32_t crc32c(const void* data, size_t size, uint32_t crc) {
 
 uint32_t mask_crc(uint32_t crc) {
   return ((crc >> 15) | (crc << 17)) + 0xa282ead8u;
-}
-
-const char* dtype_name(DType dtype) {
-  switch (dtype) {
-    case DType::kFloat32:
-      return "float32";
-    case DType::kFloat64:
-      return "float64";
-    case DType::kInt32:
-      return "int32";
-    case DType::kInt64:
-      return "int64";
-  }
-  return "?";
-}
-
-const char* kind_name(FieldKind kind) {
-  switch (kind) {
-    case FieldKind::kStatic:
-      return "static";
-    case FieldKind::kDynamic:
-      return "dynamic";
-    case FieldKind::kDynamicVarlen:
-      return "dynamic_varlen";
-  }
-  return "?";
-}
-
-size_t dtype_size(DType dtype) {
-  return (dtype == DType::kFloat32 || dtype == DType::kInt32) ? 4 : 8;
-}
-
-std::string shape_string(const std::vector<int64_t>& shape) {
-  std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) s += (i ? "," : "") + std::to_string(shape[i]);
-  return s + "]";
-}
-
-const FieldSpec* Meta::find(const std::string& name) const {
-  for (const auto& f : fields)
-    if (f.name == name) return &f;
-  return nullptr;
-}
-
-// ---------------------------------------------------------------------------------------------
-// meta.json
-
-namespace {
-
-DType parse_dtype(std::string s, const std::string& where) {
-  // One published meta.json spells it "<dtype: 'float32'>".
-  const std::string prefix = "<dtype: '", suffix = "'>";
-  if (s.size() > prefix.size() + suffix.size() && s.compare(0, prefix.size(), prefix) == 0 &&
-      s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0)
-    s = s.substr(prefix.size(), s.size() - prefix.size() - suffix.size());
-  if (s == "float32") return DType::kFloat32;
-  if (s == "float64") return DType::kFloat64;
-  if (s == "int32") return DType::kInt32;
-  if (s == "int64") return DType::kInt64;
-  throw InputError(where + ": unknown dtype '" + s +
-                   "' (expected float32, float64, int32 or int64)");
-}
-
-}  // namespace
-
-Meta parse_meta(const std::string& text, const std::string& path) {
-  using Json = nlohmann::json;
-  Json j;
-  try {
-    j = Json::parse(text);
-  } catch (const Json::exception& e) {
-    std::string what = e.what();
-    for (char& c : what)
-      if (c == '\n') c = ' ';
-    throw InputError(path + ": malformed JSON: " + what);
-  }
-  if (!j.is_object()) throw InputError(path + ": expected a JSON object");
-  auto require = [&](const char* key) -> const Json& {
-    if (!j.contains(key)) throw InputError(path + ": missing key '" + key + "'");
-    return j.at(key);
-  };
-  Meta m;
-  m.path = path;
-  const Json& length = require("trajectory_length");
-  if (!length.is_number_integer() || length.get<int64_t>() < 1 ||
-      length.get<int64_t>() > (int64_t{1} << 31))
-    throw InputError(path + ": 'trajectory_length' must be a positive integer");
-  m.trajectory_length = length.get<int64_t>();
-  if (j.contains("dt") && !j["dt"].is_null()) {
-    if (!j["dt"].is_number() || !std::isfinite(j["dt"].get<double>()) || j["dt"].get<double>() < 0)
-      throw InputError(path + ": 'dt' must be a non-negative number");
-    m.dt = j["dt"].get<double>();
-  }
-  if (j.contains("collision_radius") && !j["collision_radius"].is_null()) {
-    const Json& r = j["collision_radius"];
-    if (!r.is_number() || !std::isfinite(r.get<double>()) || r.get<double>() < 0)
-      throw InputError(path + ": 'collision_radius' must be a non-negative number or null");
-    m.collision_radius = r.get<double>();
-  }
-  if (j.contains("simulator") && !j["simulator"].is_null()) {
-    if (!j["simulator"].is_string()) throw InputError(path + ": 'simulator' must be a string");
-    m.simulator = j["simulator"].get<std::string>();
-  }
-  const Json& names = require("field_names");
-  const Json& features = require("features");
-  if (!names.is_array() || names.empty())
-    throw InputError(path + ": 'field_names' must be a non-empty list of strings");
-  if (!features.is_object()) throw InputError(path + ": 'features' must be an object");
-  std::vector<std::string> varlen;
-  for (const Json& name_json : names) {
-    if (!name_json.is_string())
-      throw InputError(path + ": 'field_names' must be a non-empty list of strings");
-    FieldSpec f;
-    f.name = name_json.get<std::string>();
-    const std::string where = path + ": field '" + f.name + "'";
-    if (m.find(f.name)) throw InputError(where + " is listed twice in 'field_names'");
-    if (!features.contains(f.name)) throw InputError(where + " has no entry in 'features'");
-    const Json& spec = features.at(f.name);
-    if (!spec.is_object()) throw InputError(where + ": expected an object");
-    for (const char* key : {"type", "shape", "dtype"})
-      if (!spec.contains(key)) throw InputError(where + ": missing key '" + key + "'");
-    if (!spec["type"].is_string() || !spec["dtype"].is_string())
-      throw InputError(where + ": 'type' and 'dtype' must be strings");
-    const std::string type = spec["type"].get<std::string>();
-    if (type == "static") {
-      f.kind = FieldKind::kStatic;
-    } else if (type == "dynamic") {
-      f.kind = FieldKind::kDynamic;
-    } else if (type == "dynamic_varlen") {
-      f.kind = FieldKind::kDynamicVarlen;
-    } else {
-      throw InputError(where + ": unknown type '" + type +
-                       "' (expected static, dynamic or dynamic_varlen)");
-    }
-    f.dtype = parse_dtype(spec["dtype"].get<std::string>(), where);
-    const Json& shape = spec["shape"];
-    if (!shape.is_array() || shape.empty() || shape.size() > 8)
-      throw InputError(where + ": 'shape' must be a list of 1 to 8 integers");
-    int unknown = 0;
-    int64_t known = 1;
-    for (const Json& e : shape) {
-      if (!e.is_number_integer())
-        throw InputError(where + ": 'shape' must be a list of 1 to 8 integers");
-      const int64_t v = e.get<int64_t>();
-      if (v == -1) {
-        ++unknown;
-      } else if (v < 1 || v > kMaxElements || known > kMaxElements / v) {
-        throw InputError(where + ": shape entry " + std::to_string(v) +
-                         " out of range (positive, or -1 for the node/cell count)");
-      } else {
-        known *= v;
-      }
-      f.shape.push_back(v);
-    }
-    if (unknown > 1)
-      throw InputError(where + ": shape " + shape_string(f.shape) + " has more than one -1");
-    if (f.kind == FieldKind::kStatic && f.shape[0] != 1)
-      throw InputError(where + ": static shape " + shape_string(f.shape) + " must start with 1");
-    if (f.kind != FieldKind::kStatic && f.shape[0] != m.trajectory_length)
-      throw InputError(where + ": dynamic shape " + shape_string(f.shape) +
-                       " must start with trajectory_length " + std::to_string(m.trajectory_length));
-    if (f.kind == FieldKind::kDynamicVarlen) {
-      if (unknown != 1 || f.shape.size() < 2 || f.shape[1] != -1)
-        throw InputError(where + ": dynamic_varlen shape " + shape_string(f.shape) +
-                         " must be [T,-1,...]");
-      varlen.push_back(f.name);
-    }
-    m.fields.push_back(std::move(f));
-  }
-  // `length_<field>` companions of varlen fields are read with their field, never on their own.
-  for (const auto& name : varlen) {
-    const std::string companion = "length_" + name;
-    DType dtype = DType::kInt32;
-    if (features.contains(companion) && features.at(companion).is_object() &&
-        features.at(companion).contains("dtype") && features.at(companion)["dtype"].is_string())
-      dtype = parse_dtype(features.at(companion)["dtype"].get<std::string>(),
-                          path + ": field '" + companion + "'");
-    if (dtype != DType::kInt32 && dtype != DType::kInt64)
-      throw InputError(path + ": field '" + companion + "': row lengths must be int32 or int64");
-    for (size_t i = 0; i < m.fields.size(); ++i)
-      if (m.fields[i].name == companion) {
-        m.fields.erase(m.fields.begin() + static_cast<std::ptrdiff_t>(i));
-        break;
-      }
-    for (auto& f : m.fields)
-      if (f.name == name) f.length_dtype = dtype;
-  }
-  return m;
-}
-
-Meta read_meta(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open (a MeshGraphNets dataset needs meta.json)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_meta(text.str(), path);
 }
 
 // ---------------------------------------------------------------------------------------------

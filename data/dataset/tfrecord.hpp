@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "data/dataset/tfrecord_meta.hpp"
+
 namespace bsms::tfrecord {
 
 // CRC32C (Castagnoli), extending `crc` (0 to start). Uses SSE4.2 when the build has it.
@@ -28,38 +30,6 @@ uint32_t crc32c(const void* data, size_t size, uint32_t crc = 0);
 uint32_t crc32c_portable(const void* data, size_t size, uint32_t crc = 0);
 // TFRecord's masked CRC: ((crc >> 15) | (crc << 17)) + 0xa282ead8.
 uint32_t mask_crc(uint32_t crc);
-
-enum class DType { kFloat32, kFloat64, kInt32, kInt64 };
-enum class FieldKind { kStatic, kDynamic, kDynamicVarlen };
-
-const char* dtype_name(DType dtype);    // "float32", ...
-const char* kind_name(FieldKind kind);  // "static", "dynamic", "dynamic_varlen"
-size_t dtype_size(DType dtype);         // bytes per value
-std::string shape_string(const std::vector<int64_t>& shape);  // "[24,-1,2]"
-
-struct FieldSpec {
-  std::string name;
-  FieldKind kind = FieldKind::kStatic;
-  DType dtype = DType::kFloat32;
-  std::vector<int64_t> shape;          // meta shape; at most one -1 (the node or cell count)
-  DType length_dtype = DType::kInt32;  // dynamic_varlen: dtype of `length_<name>`
-  int64_t width() const { return shape.empty() ? 1 : (shape.back() < 0 ? 1 : shape.back()); }
-};
-
-// meta.json of a MeshGraphNets dataset folder.
-struct Meta {
-  std::string path;               // the meta.json file (for messages)
-  std::vector<FieldSpec> fields;  // in field_names order (varlen companions not listed)
-  int64_t trajectory_length = 0;  // frames per trajectory (T)
-  double dt = 0.0;                // seconds between frames (0 when absent)
-  double collision_radius = 0.0;  // 0 when null or absent
-  std::string simulator;          // "" when absent
-  const FieldSpec* find(const std::string& name) const;  // nullptr when not a field
-};
-
-// Parses meta.json text; `path` names it in messages. Throws InputError.
-Meta parse_meta(const std::string& text, const std::string& path);
-Meta read_meta(const std::string& path);
 
 // Where one field of a record lies, after the record was checked and walked.
 struct FieldSlice {

@@ -1,7 +1,9 @@
-// Scene families for dataset generation: a base scene (the JSON of configs/scenes/*.json, inline
-// under "scene") plus a "sample" section of parameter ranges. A family-specific sampler turns a
-// seeded random stream into one concrete scene per trajectory (bodies, sizes, positions,
-// velocities, materials, gravity). Families: "disks", "press", "cantilever", "union".
+// Scene families for dataset generation (configs/families/*.json): a base scene (the JSON of
+// configs/scenes/*.json, inline under "scene") plus a "sample" section of parameter ranges. A
+// family-specific sampler turns a seeded random stream into one concrete scene per trajectory
+// (bodies, sizes, positions, velocities, materials, gravity). Families: "disks", "press",
+// "cantilever", "union", one file each in data/generate/families/; this file's parse_family is
+// the factory keyed by "family".
 //
 // Family file (strict; unknown keys, min > max and non-positive sizes are InputErrors):
 //   {"family": "disks", "scene": {...}, "frames": 50, "frame_dt": 0.03,
@@ -24,29 +26,9 @@
 #include <vector>
 
 #include "core/config.hpp"
+#include "data/generate/rng.hpp"
 
 namespace bsms::generate {
-
-// splitmix64: portable, so a draw is identical on every platform and standard library.
-class Rng {
- public:
-  explicit Rng(uint64_t seed) : state_(seed) {}
-  uint64_t next();
-  double uniform();                         // [0, 1)
-  double uniform(double lo, double hi);     // [lo, hi); lo when lo == hi
-  int64_t integer(int64_t lo, int64_t hi);  // [lo, hi], inclusive
- private:
-  uint64_t state_;
-};
-
-// Seed of global trajectory `index` at draw `attempt` (0 first, +1 per unstable redraw) of a run
-// with seed `seed`. Non-negative, stored in the dataset; Rng(trajectory_seed(...)) redraws it.
-int64_t trajectory_seed(int64_t seed, int64_t index, int attempt);
-
-struct Range {
-  double min = 0.0, max = 0.0;
-  double sample(Rng& rng) const { return rng.uniform(min, max); }
-};
 
 // Node classification rule: nodes with (x − point)·normal ≥ −tolerance are fixed (node_type 1).
 struct FixedPlane {

@@ -7,14 +7,14 @@
 //                             bsms dataset written atomically: its existence means "done"
 //   DIR/train.h5, valid.h5, test.h5   merged from the parts in index order (atomic), after which
 //                             the parts are removed (a shard run keeps them for --merge)
-// Trajectory i of a run with seed S is drawn from Rng(trajectory_seed(S, i, attempt)); a draw whose
-// solve fails (NumericalError) is reported and replaced by attempt + 1. Nothing that depends on
-// time, threads or interruption enters the files except each trajectory's solver_wall_s.
+// Trajectory i of a run with seed S is drawn from Rng(trajectory_seed(S, i, attempt)) and solved by
+// trajectory_solver.hpp; a draw whose solve fails (NumericalError) is reported and replaced by
+// attempt + 1. Nothing that depends on time, threads or interruption enters the files except each
+// trajectory's solver_wall_s.
 #pragma once
 
 #include <array>
 #include <cstdint>
-#include <functional>
 #include <string>
 #include <vector>
 
@@ -64,18 +64,6 @@ struct GenerateSummary {
   SplitCounts counts;
   std::string summary_line() const;
 };
-
-// Draw `attempt` of global trajectory `index`, solved single-threaded: mesh, node types, bodies,
-// fields [T, N, width]. Throws NumericalError when the solve is unstable.
-Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
-                      const std::string& work_prefix);
-
-// One trajectory: draws the scene of global index `index` (redrawing unstable draws), solves it
-// single-threaded and returns it with its node types, bodies and fields. `work_prefix` names
-// scratch files (union geometry). `on_redraw` is told about each unstable draw.
-Trajectory generate_trajectory(const FamilyConfig& family, int64_t seed, int64_t index,
-                               int max_attempts, const std::string& work_prefix,
-                               const std::function<void(const std::string&)>& on_redraw = {});
 
 // Generates (or resumes) a dataset as described at the top of this file.
 GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptions& options);

@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
+#include "data/mpm/scene_builder.hpp"
 
 namespace bsms::mpm {
 

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <string>
 
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms::mpm {
 

@@ -5,7 +5,8 @@
 #include "cli/command.hpp"
 #include "core/error.hpp"
 #include "core/runtime.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_config.hpp"
+#include "data/mpm/scene_size.hpp"
 #include "data/mpm/simulation.hpp"
 
 namespace {

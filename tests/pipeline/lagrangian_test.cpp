@@ -15,7 +15,7 @@
 #include "core/graph.hpp"
 #include "core/radius_search.hpp"
 #include "data/generate/family.hpp"
-#include "data/generate/generator.hpp"
+#include "data/generate/trajectory_solver.hpp"
 #include "models/layers.hpp"
 #include "pipeline/train_config.hpp"
 #include "plate_data.hpp"
@@ -376,7 +376,7 @@ TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
       std::string::npos);
   EXPECT_NE(why("{" + box + ", " + walls + "}", false).find("wall"), std::string::npos);
   EXPECT_NE(why(R"({"background": {"type": "mesh"}})").find("box"), std::string::npos);
-  // The shipped default scene and the cantilever.
+  // The shipped default scene family and the cantilever scene.
   const std::string root = std::string(BSMS_SOURCE_DIR) + "/configs/";
   auto file = [](const std::string& path) {
     std::ifstream in(path);

@@ -9,7 +9,7 @@
 #include "core/gmsh_session.hpp"
 #include "data/mpm/background.hpp"
 #include "data/mpm/kernel.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_builder.hpp"
 #include "data/mpm/solver.hpp"
 
 namespace bsms::mpm::testing {

@@ -13,7 +13,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
-#include "tests/dataset/tfrecord_writer.hpp"
+#include "tests/data/dataset/tfrecord_writer.hpp"
 
 namespace bsms {
 namespace {

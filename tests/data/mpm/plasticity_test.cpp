@@ -10,7 +10,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/mpm/material.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_builder.hpp"
 #include "data/mpm/simulation.hpp"
 #include "data/mpm/solver.hpp"
 

@@ -5,7 +5,7 @@
 #include <string>
 
 #include "core/error.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_builder.hpp"
 #include "mpm_test_util.hpp"
 
 namespace bsms::mpm {

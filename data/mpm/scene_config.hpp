@@ -1,14 +1,15 @@
-// Scenes: one typed struct per concern (background mesh, bodies, boundaries, solver, output),
-// read strictly from JSON (unknown or missing keys and impossible values are an InputError naming
-// the file and key) and built into solver input with gmsh. A dataset generator samples parameters
-// by editing the JSON (e.g. through apply_override) and calling parse_scene again.
+// Scene files (configs/scenes/*.json): one typed struct per concern (background mesh, bodies,
+// boundaries, solver, output), read strictly from JSON (unknown or missing keys and impossible
+// values are an InputError naming the file and key). No meshing here: scene_size.hpp estimates a
+// scene's work from these structs, scene_builder.hpp turns them into solver input. A dataset
+// generator samples parameters by editing the JSON (e.g. through apply_override) and calling
+// parse_scene again.
 #pragma once
 
 #include <string>
 #include <vector>
 
 #include "core/config.hpp"
-#include "core/mesh.hpp"
 #include "data/mpm/solver.hpp"
 
 namespace bsms::mpm {
@@ -108,46 +109,5 @@ struct Scene {
 Scene parse_scene(const Json& json, const std::string& file);
 // Loads a scene file and applies `--set key.path=value` overrides before parsing.
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
-
-// The size of a scene's work, estimated from its JSON alone (no meshing), so that a typo such as
-// `spacing` 1e-7 m for 1e-2 is refused in a millisecond instead of meshing until killed.
-// Unstructured gmsh meshes are estimated from the measure over the element size^dim (node
-// density of equilateral simplices); structured boxes and lattices are counted exactly; mesh
-// files count 0 here (the file bounds them). Steps: end_time / dt, or with a CFL step the
-// material wave speed plus the largest initial speed over cfl times the element size.
-struct SceneEstimate {
-  double particles = 0.0;  // material points, all bodies
-  double nodes = 0.0;      // background nodes
-  double steps = 0.0;      // time steps to end_time (0 when unknown: a mesh-file background)
-  double bytes = 0.0;      // peak memory: particles, background, stencils, kernel slots, frames
-  // Largest body (index) by particles, for the message's key.
-  int largest_body = 0;
-};
-SceneEstimate estimate_scene(const Scene& scene);
-
-// Limits of estimate_scene's figures: beyond them build_scene refuses the scene with an
-// InputError naming the file, the key, the estimate and the limit (exit 2 in the CLI).
-constexpr double kMaxParticles = 5e7;
-constexpr double kMaxBackgroundNodes = 5e7;
-constexpr double kMaxSteps = 1e9;
-constexpr double kMaxNodeSteps = 1e13;  // (particles + nodes) x steps: days of stepping
-// Throws InputError when estimate_scene exceeds a limit above or the machine's physical memory
-// (sysconf); `memory_limit_bytes` <= 0 means the physical memory.
-void check_scene_size(const Scene& scene, double memory_limit_bytes = 0.0);
-
-template <int Dim>
-struct BuiltScene {
-  BackgroundMesh<Dim> background;
-  std::vector<Material> materials;  // one per body
-  Particles<Dim> particles;
-  std::vector<Mesh> body_meshes;  // particles of body b are the nodes of body_meshes[b], in order
-  std::vector<NodeConstraint<Dim>> constraints;
-  SolverSettings<Dim> settings;
-};
-
-// Meshes the background and the bodies with gmsh and seeds particles at body mesh nodes with
-// lumped volumes. InputError if a body lies outside the background or a group is unknown.
-template <int Dim>
-BuiltScene<Dim> build_scene(const Scene& scene);
 
 }  // namespace bsms::mpm

@@ -13,6 +13,8 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "data/mpm/scene_builder.hpp"
+#include "data/mpm/scene_size.hpp"
 #include "data/mpm/simulation.hpp"
 
 namespace bsms::mpm {
@@ -21,7 +23,7 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kScenes = std::string(BSMS_SOURCE_DIR) + "/configs/scenes/";
-const std::string kBad = std::string(BSMS_SOURCE_DIR) + "/tests/data/scenes/";
+const std::string kBad = std::string(BSMS_SOURCE_DIR) + "/tests/data/mpm/scenes/";
 
 std::string input_error(const std::string& path, const std::vector<std::string>& sets = {}) {
   try {
@@ -34,8 +36,8 @@ std::string input_error(const std::string& path, const std::vector<std::string>&
 }
 
 TEST(Scene, EveryShippedSceneParsesAndBuilds) {
-  // Scenes of `bsms simulate` (dataset families are in configs/families/, parsed by
-  // tests/generate).
+  // Every file in configs/scenes/ is a scene of `bsms simulate` (dataset families are in
+  // configs/families/, parsed by tests/data/generate).
   int count = 0;
   for (const auto& entry : fs::directory_iterator(kScenes)) {
     if (entry.path().extension() != ".json") continue;

@@ -10,7 +10,7 @@
 
 #include "core/error.hpp"
 #include "core/runtime.hpp"
-#include "data/mpm/scene.hpp"
+#include "data/mpm/scene_config.hpp"
 #include "mpm_test_util.hpp"
 
 namespace bsms::mpm {

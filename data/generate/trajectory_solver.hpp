@@ -1,0 +1,29 @@
+// One trajectory of a scene family: the draw of a global index (Rng(trajectory_seed(...))), its
+// scene parsed, built and solved single-threaded with UMLS-MPM, recorded as a dataset Trajectory
+// (mesh, node types from the family's fixed planes and actuator bodies, bodies, fields).
+// Unstable draws (NumericalError) are replaced by the next attempt. generator.hpp runs many of
+// these into a crash-safe dataset.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "data/dataset/dataset.hpp"
+#include "data/generate/family.hpp"
+
+namespace bsms::generate {
+
+// Draw `attempt` of global trajectory `index`, solved single-threaded: mesh, node types, bodies,
+// fields [T, N, width]. Throws NumericalError when the solve is unstable.
+Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
+                      const std::string& work_prefix);
+
+// One trajectory: draws the scene of global index `index` (redrawing unstable draws), solves it
+// single-threaded and returns it with its node types, bodies and fields. `work_prefix` names
+// scratch files (union geometry). `on_redraw` is told about each unstable draw.
+Trajectory generate_trajectory(const FamilyConfig& family, int64_t seed, int64_t index,
+                               int max_attempts, const std::string& work_prefix,
+                               const std::function<void(const std::string&)>& on_redraw = {});
+
+}  // namespace bsms::generate
