@@ -1,4 +1,4 @@
-#include "core/mesh.hpp"
+#include "msh_fixtures.hpp"
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
@@ -15,11 +15,13 @@
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
 #include "core/graph.hpp"
+#include "msh_fixtures.hpp"
 
 namespace bsms {
 namespace {
 
 namespace fs = std::filesystem;
+using test::kTwoTriangles;
 
 std::string temp_path(const std::string& name) {
   return (fs::temp_directory_path() / ("bsms_mesh_" + name)).string();
@@ -39,25 +41,6 @@ std::string error_of(const std::string& path) {
   }
   return "";
 }
-
-// A small MSH 2.2 file: two triangles, node 7 unused, node tags not contiguous.
-const char* kTwoTriangles = R"($MeshFormat
-2.2 0 8
-$EndMeshFormat
-$Nodes
-5
-3 0 0 0
-5 1 0 0
-7 9 9 0
-8 1 1 0
-10 0 1 0
-$EndNodes
-$Elements
-2
-1 2 2 0 1 3 5 8
-2 2 2 0 1 3 8 10
-$EndElements
-)";
 
 TEST(Mesh, NumbersNodesByAscendingTagAndDropsUnusedNodes) {
   const Mesh mesh = read_mesh(write_text("two.msh", kTwoTriangles));

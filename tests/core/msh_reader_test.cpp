@@ -17,6 +17,7 @@
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
 #include "core/mesh.hpp"
+#include "msh_fixtures.hpp"
 
 namespace bsms {
 namespace {
@@ -366,24 +367,7 @@ TEST(MshReader, DispatchesOnTheMeshFormatLine) {
   EXPECT_FALSE(is_direct_msh(""));
 }
 
-// Two triangles in MSH 2.2 (the line numbers below refer to this text).
-const char* kTwoTriangles = R"($MeshFormat
-2.2 0 8
-$EndMeshFormat
-$Nodes
-5
-3 0 0 0
-5 1 0 0
-7 9 9 0
-8 1 1 0
-10 0 1 0
-$EndNodes
-$Elements
-2
-1 2 2 0 1 3 5 8
-2 2 2 0 1 3 8 10
-$EndElements
-)";
+using test::kTwoTriangles;
 
 std::string edited(std::string text, const std::string& from, const std::string& to) {
   const size_t at = text.find(from);
