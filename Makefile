@@ -9,7 +9,7 @@ DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh
         nlohmann-json3-dev libprotobuf-dev libgloo-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
         libopenblas0-pthread gnuplot-nox
 
-.PHONY: deps build test demo train-long hardcases bench fuzz sanitize sanitize-thread format clean
+.PHONY: deps build test test-no-torch demo train-long hardcases bench fuzz sanitize sanitize-thread format clean
 
 deps:
 	@missing=$$(for p in $(DEPS); do \
@@ -28,6 +28,16 @@ build: deps $(BUILD)/CMakeCache.txt
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS) --timeout 1800
+
+# The parts that do not use LibTorch (core, preprocess, the solver and the data formats) built and
+# tested on their own, as on a machine without LibTorch: -DBSMS_TORCH=OFF in build-no-torch/, with
+# the Debian packages less LibTorch and Gloo. Not part of `make test` (CI time).
+NO_TORCH_DEPS := $(filter-out libtorch-dev libgloo-dev,$(DEPS))
+test-no-torch:
+	$(MAKE) deps DEPS="$(NO_TORCH_DEPS)"
+	cmake -S . -B build-no-torch -DCMAKE_BUILD_TYPE=Release -DBSMS_TORCH=OFF
+	cmake --build build-no-torch -j $(JOBS)
+	cd build-no-torch && ctest --output-on-failure -j $(JOBS) --timeout 1800
 
 demo: build
 	./scripts/demo.sh $(BUILD) $(RUNS)/demo

@@ -25,6 +25,7 @@
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
 #include "models/networks.hpp"
+#include "pipeline/multilevel_tensors.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace {

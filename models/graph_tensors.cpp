@@ -126,19 +126,20 @@ LevelTransition merge_transitions(const std::vector<const LevelTransition*>& par
   return out;
 }
 
-LevelTransition make_transition(const GraphLevel& fine, const GraphLevel& coarse, int level) {
-  const CsrGraph& g = fine.graph;
+// `level`: index of the fine level `g`, for messages.
+LevelTransition make_transition(const CsrGraph& g, const std::vector<int64_t>& pooled,
+                                const std::vector<float>& down_weight, int level) {
   const int64_t nf = g.num_nodes;
-  const int64_t nc = static_cast<int64_t>(coarse.pooled.size());
-  if (static_cast<int64_t>(coarse.down_weight.size()) != g.num_edges()) {
+  const int64_t nc = static_cast<int64_t>(pooled.size());
+  if (static_cast<int64_t>(down_weight.size()) != g.num_edges()) {
     throw InputError("multilevel graph: level " + std::to_string(level + 1) + " has " +
-                     std::to_string(coarse.down_weight.size()) +
-                     " down weights, expected one per " + "level-" + std::to_string(level) +
-                     " edge (" + std::to_string(g.num_edges()) + ")");
+                     std::to_string(down_weight.size()) + " down weights, expected one per " +
+                     "level-" + std::to_string(level) + " edge (" + std::to_string(g.num_edges()) +
+                     ")");
   }
   std::vector<int64_t> coarse_of(nf, -1);
   for (int64_t c = 0; c < nc; ++c) {
-    const int64_t i = coarse.pooled[c];
+    const int64_t i = pooled[c];
     if (i < 0 || i >= nf) {
       throw InputError("multilevel graph: level " + std::to_string(level + 1) + " pooled index " +
                        std::to_string(i) + " outside [0, " + std::to_string(nf) + ")");
@@ -154,7 +155,7 @@ LevelTransition make_transition(const GraphLevel& fine, const GraphLevel& coarse
       if (c < 0) continue;
       rows.push_back(c);
       cols.push_back(i);
-      vals.push_back(coarse.down_weight[p]);
+      vals.push_back(down_weight[p]);
     }
   }
   const auto nnz = static_cast<int64_t>(rows.size());
@@ -220,6 +221,13 @@ EdgeIndex EdgeIndex::empty(int64_t num_nodes) {
   return edge_index_from_vectors({}, {}, num_nodes);
 }
 
+LevelTransition LevelTransition::from_down_weights(const CsrGraph& fine,
+                                                   const std::vector<int64_t>& pooled,
+                                                   const std::vector<float>& down_weight,
+                                                   int level) {
+  return make_transition(fine, pooled, down_weight, level - 1);
+}
+
 int MultilevelTensors::num_graphs() const {
   return node_offsets.empty() ? 0 : static_cast<int>(node_offsets[0].size()) - 1;
 }
@@ -271,21 +279,6 @@ MultilevelTensors MultilevelTensors::with_edge_sets(const std::vector<EdgeList>&
   return with_edge_sets(sets);
 }
 
-MultilevelTensors make_multilevel_tensors(const MultilevelGraph& graph, int max_levels) {
-  int levels = graph.num_levels();
-  if (levels == 0) throw InputError("multilevel graph: no levels");
-  if (max_levels > 0) levels = std::min(levels, max_levels);
-  MultilevelTensors h;
-  for (int k = 0; k < levels; ++k) {
-    const GraphLevel& level = graph.levels[k];
-    h.edge_sets.push_back({EdgeIndex::from_csr(level.graph)});
-    h.node_offsets.push_back({0, level.num_nodes()});
-    h.transitions.push_back(k > 0 ? make_transition(graph.levels[k - 1], level, k - 1)
-                                  : LevelTransition{});
-  }
-  return h;
-}
-
 MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTensors*>& graphs) {
   if (graphs.empty()) throw InputError("graph batch: no graphs to merge");
   if (graphs.size() == 1) return *graphs[0];
@@ -329,31 +322,6 @@ MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTen
     }
   }
   return out;
-}
-
-const MultilevelTensors& MultilevelTensorCache::get(const std::string& key,
-                                                    const MultilevelGraph& graph) {
-  auto it = single_.find(key);
-  if (it == single_.end()) {
-    it = single_
-             .emplace(key, std::make_shared<MultilevelTensors>(
-                               make_multilevel_tensors(graph, max_levels_)))
-             .first;
-  }
-  return *it->second;
-}
-
-const MultilevelTensors& MultilevelTensorCache::batch(const std::vector<std::string>& keys) {
-  if (keys == last_batch_keys_ && !keys.empty()) return last_batch_;
-  std::vector<const MultilevelTensors*> parts;
-  for (const auto& key : keys) {
-    auto it = single_.find(key);
-    if (it == single_.end()) throw InputError("graph batch: mesh '" + key + "' is not cached");
-    parts.push_back(it->second.get());
-  }
-  last_batch_ = merge_multilevel_tensors(parts);
-  last_batch_keys_ = keys;
-  return last_batch_;
 }
 
 }  // namespace bsms

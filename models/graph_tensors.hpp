@@ -1,15 +1,15 @@
 // Index tensors of (batched) multilevel graphs, precomputed once per mesh for the graph kernels.
+// Built from core's CSR graphs and plain arrays only: the bi-stride MultilevelGraph of preprocess/
+// becomes MultilevelTensors in src/pipeline/multilevel_tensors.hpp, a proximity hierarchy in
+// models/proximity_multilevel.hpp.
 #pragma once
 
 #include <torch/types.h>
 
 #include <cstdint>
-#include <map>
-#include <memory>
-#include <string>
 #include <vector>
 
-#include "preprocess/multilevel_graph.hpp"
+#include "core/graph.hpp"
 
 namespace bsms {
 
@@ -50,6 +50,14 @@ struct LevelTransition {
   torch::Tensor up_columns;    // [nnz] int64, coarse node ids
   torch::Tensor up_values;     // [nnz] float32
   bool up_is_down_transpose = true;
+
+  // The bi-stride transition from level k-1 to level k of a multilevel graph, given as plain
+  // arrays (the fields of preprocess/'s GraphLevel; models/ does not depend on preprocess/):
+  // `fine` = level k-1's graph, `pooled` [N_k] its nodes kept at level k (ascending), and
+  // `down_weight` [E_(k-1)] one weight per edge of `fine` in CSR order. `level` = k, for messages.
+  // InputError when the sizes or indices do not fit.
+  static LevelTransition from_down_weights(const CsrGraph& fine, const std::vector<int64_t>& pooled,
+                                           const std::vector<float>& down_weight, int level);
 };
 
 // The tensors a model needs for one graph or a block-diagonal batch of graphs.
@@ -74,28 +82,9 @@ struct MultilevelTensors {
   MultilevelTensors with_edge_sets(const std::vector<EdgeList>& per_level) const;
 };
 
-// Tensors of a multilevel graph; max_levels > 0 keeps only the finest max_levels levels.
-MultilevelTensors make_multilevel_tensors(const MultilevelGraph& graph, int max_levels = 0);
-
 // Block-diagonal merge of several hierarchies (different meshes allowed) with the same number of
 // levels; graph g's nodes follow those of graphs 0..g-1 at every level. Node features of the batch
 // are torch::cat of the graphs' features along dim 0. InputError on a level-count mismatch.
 MultilevelTensors merge_multilevel_tensors(const std::vector<const MultilevelTensors*>& graphs);
-
-// Builds each mesh's hierarchy once and keeps it (and the last batch merged) for later steps.
-class MultilevelTensorCache {
- public:
-  explicit MultilevelTensorCache(int max_levels = 0) : max_levels_(max_levels) {}
-  const MultilevelTensors& get(const std::string& key, const MultilevelGraph& graph);
-  bool contains(const std::string& key) const { return single_.count(key) != 0; }
-  // The merged batch of cached meshes (all keys must have been added with get()).
-  const MultilevelTensors& batch(const std::vector<std::string>& keys);
-
- private:
-  int max_levels_;
-  std::map<std::string, std::shared_ptr<MultilevelTensors>> single_;
-  std::vector<std::string> last_batch_keys_;
-  MultilevelTensors last_batch_;
-};
 
 }  // namespace bsms

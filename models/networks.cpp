@@ -103,13 +103,25 @@ BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
   for (size_t s = 0; s < num_edge_sets(); ++s) feature_sizes.push_back(edge_feature_size(s));
   encoder_ =
       register_module("encoder", std::make_shared<Mlp>(options_.input_size, latent, latent, true));
-  for (int k = 0; k + 1 < options_.num_levels; ++k) {
-    down_.push_back(register_module("down_" + std::to_string(k),
-                                    std::make_shared<MessagePassing>(latent, feature_sizes)));
-    up_.push_back(register_module("up_" + std::to_string(k),
-                                  std::make_shared<MessagePassing>(latent, feature_sizes)));
+  if (options_.mp_per_level < 1) {
+    throw InputError("BSMS-GNN: mp_per_level is " + std::to_string(options_.mp_per_level) +
+                     ", expected >= 1");
   }
-  bottom_ = register_module("bottom", std::make_shared<MessagePassing>(latent, feature_sizes));
+  // Block i > 0 of a level is named <name>_<i>: models with one block per level keep the names
+  // (and checkpoints) they had before the count was an option.
+  auto blocks = [&](const std::string& name) {
+    std::vector<std::shared_ptr<MessagePassing>> out;
+    for (int i = 0; i < options_.mp_per_level; ++i) {
+      out.push_back(register_module(i == 0 ? name : name + "_" + std::to_string(i),
+                                    std::make_shared<MessagePassing>(latent, feature_sizes)));
+    }
+    return out;
+  };
+  for (int k = 0; k + 1 < options_.num_levels; ++k) {
+    down_.push_back(blocks("down_" + std::to_string(k)));
+    up_.push_back(blocks("up_" + std::to_string(k)));
+  }
+  bottom_ = blocks("bottom");
   decoder_ = register_module("decoder",
                              std::make_shared<Mlp>(latent, latent, options_.output_size, false));
 }
@@ -150,15 +162,20 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
 
   auto v = run_mlp(*encoder_, nodes);
   std::vector<torch::Tensor> skips;
+  auto pass = [&](std::vector<std::shared_ptr<MessagePassing>>& level_blocks, int k,
+                  torch::Tensor x) {
+    for (auto& block : level_blocks) x = block->forward(x, feats[k], idx[k], mode_);
+    return x;
+  };
   for (int k = 0; k + 1 < levels; ++k) {
-    v = down_[k]->forward(v, feats[k], idx[k], mode_);
+    v = pass(down_[k], k, v);
     skips.push_back(v);
     v = transition_down(v, graph.transitions[k + 1]);
   }
-  v = bottom_->forward(v, feats[levels - 1], idx[levels - 1], mode_);
+  v = pass(bottom_, levels - 1, v);
   for (int k = levels - 2; k >= 0; --k) {
     v = transition_up(v, graph.transitions[k + 1]);
-    v = up_[k]->forward(v, feats[k], idx[k], mode_) + skips[k];
+    v = pass(up_[k], k, v) + skips[k];
   }
   return run_mlp(*decoder_, v);
 }

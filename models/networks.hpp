@@ -26,6 +26,9 @@ struct GraphModelOptions {
   std::vector<EdgeStretch> edge_set_stretch;
   int num_levels = 1;              // BSMS: levels of the multilevel graph (>= 1)
   int message_passing_steps = 15;  // MeshGraphNets
+  // BSMS: message-passing blocks on each level on the way down, at the bottom and on each level
+  // on the way up (the original implementation's MP times per level); >= 1.
+  int mp_per_level = 1;
 };
 
 // Common interface: node inputs (normalised) to node outputs (normalised) on a graph hierarchy.
@@ -62,9 +65,10 @@ class GraphModel : public torch::nn::Module {
   EdgeMlpMode mode_ = EdgeMlpMode::kProjection;
 };
 
-// BSMS-GNN: encoder at level 0, one message passing per level on the way down, one at the bottom,
-// one per level on the way up with skip additions, decoder. Transitions are non-parametric
-// (models/graph_ops.hpp); coarse positions are the finer positions moved down by the transition.
+// BSMS-GNN: encoder at level 0, mp_per_level message passings per level on the way down, as many
+// at the bottom and per level on the way up with skip additions, decoder. Transitions are
+// non-parametric (models/graph_ops.hpp); coarse positions are the finer positions moved down by the
+// transition.
 class BsmsGnn : public GraphModel {
  public:
   explicit BsmsGnn(GraphModelOptions options);
@@ -73,8 +77,9 @@ class BsmsGnn : public GraphModel {
 
  private:
   std::shared_ptr<Mlp> encoder_, decoder_;
-  std::vector<std::shared_ptr<MessagePassing>> down_, up_;
-  std::shared_ptr<MessagePassing> bottom_;
+  // down_[k], up_[k]: the blocks of level k; bottom_: those of the coarsest level.
+  std::vector<std::vector<std::shared_ptr<MessagePassing>>> down_, up_;
+  std::vector<std::shared_ptr<MessagePassing>> bottom_;
 };
 
 // One MeshGraphNets step: edge latents e_s += f_s([e_s, v_i, v_j]); v += f_V([v, Σ Δe¹, …]).

@@ -36,7 +36,9 @@ stage "bsms generate: $trajectories disks2d trajectories (80:10:10) with UMLS-MP
 "$bsms" info "$data/train.h5"
 
 stage "bsms preprocess --data: multilevel graphs of every mesh in the dataset"
-"$bsms" preprocess --data "$data" --seeding minave --levels auto --threads "$threads"
+# The seeding and level count of configs/train/disks2d-bsms.json: training reads these files
+# (named as its graph cache names them) instead of building its own.
+"$bsms" preprocess --data "$data" --seeding minave --levels 4 --threads "$threads"
 
 for model in bsms mgn; do
   stage "bsms train: $model for ${train_seconds} s"

@@ -1,6 +1,6 @@
 // bsms: entry point. Sets up the runtime (OpenMP wait policy, threads), dispatches subcommands and
 // turns errors into one clear line: InputError -> exit 2, NumericalError -> exit 3, IoError -> 4,
-// DistributedError (a lost rank) -> 5.
+// DistributedError (a lost rank) -> 5, any other exception -> 1 ("internal error": a bug).
 #include <unistd.h>
 
 #include <algorithm>
@@ -82,6 +82,9 @@ int main(int argc, char** argv) {
       "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "bsms 0.1");
+  app.footer(
+      "Exit codes: 0 success, 1 internal error (a bug to report), 2 bad input, 3 numerical "
+      "failure, 4 I/O failure, 5 distributed training lost a rank.");
   auto& registry = bsms::cli::command_registry();
   std::sort(registry.begin(), registry.end(),
             [](const auto& a, const auto& b) { return a.name < b.name; });

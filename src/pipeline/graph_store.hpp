@@ -7,7 +7,7 @@
 #include <string>
 
 #include "data/dataset/dataset.hpp"
-#include "models/graph_tensors.hpp"
+#include "pipeline/multilevel_tensors.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {

@@ -13,6 +13,7 @@
 #include "data/dataset/dataset.hpp"
 #include "pipeline/number_format.hpp"
 #include "pipeline/plotting.hpp"
+#include "pipeline/rollout_metrics.hpp"
 #include "pipeline/run_files.hpp"
 
 namespace bsms {
@@ -22,19 +23,18 @@ namespace {
 
 struct RunData {
   std::string dir, label;
-  Json metrics;
+  RolloutMetrics metrics;
 };
 
-const Json& field(const Json& m, const char* key, const char* sub) {
-  static const Json null;
-  if (!m.contains(key) || !m[key].is_object() || !m[key].contains(sub)) return null;
-  return m[key][sub];
+// A figure that may be absent, as a number or NaN (shown as "–").
+double or_nan(const std::optional<double>& v) {
+  return v.value_or(std::nan(""));
 }
 
-// The field a run's RMSE columns show: world positions (m) for Lagrangian runs, velocity for
-// Eulerian ones (public CylinderFlow / Airfoil data).
-const char* primary_field(const Json& m) {
-  return m.value("kind", std::string()) == "eulerian" ? "velocity" : "world_pos";
+// RMSE of the field a run's RMSE columns show (RolloutMetrics::primary_field: world positions
+// for Lagrangian runs, velocity for Eulerian ones, e.g. public CylinderFlow / Airfoil data).
+double primary_rmse(const RolloutMetrics& m, const std::optional<FieldRmse>& over) {
+  return RolloutMetrics::rmse(over, m.primary_field());
 }
 
 // Mesh edges of a frame as gnuplot segments ("x y" pairs separated by blank lines).
@@ -61,8 +61,8 @@ std::string write_report(const ReportRequest& request) {
       throw InputError(dir + ": no rollout/metrics.json (run bsms rollout " + dir + " first)");
     RunData r;
     r.dir = dir;
-    r.metrics = load_json_file(metrics.string());
-    r.label = fs::path(dir).filename().string() + " (" + r.metrics.value("model", "?") + ")";
+    r.metrics = read_rollout_metrics(metrics.string());
+    r.label = fs::path(dir).filename().string() + " (" + r.metrics.model + ")";
     runs.push_back(std::move(r));
   }
   const fs::path out = request.out;
@@ -75,9 +75,9 @@ std::string write_report(const ReportRequest& request) {
   // --- data files for the plots
   for (size_t r = 0; r < runs.size(); ++r) {
     std::ofstream curve(plots / ("rmse_" + std::to_string(r) + ".dat"));
-    const Json& steps = field(runs[r].metrics, "rmse_per_step", primary_field(runs[r].metrics));
+    const std::vector<double>& steps = runs[r].metrics.per_step(runs[r].metrics.primary_field());
     for (size_t s = 0; s < steps.size(); ++s)
-      curve << s + 1 << ' ' << steps[s].get<double>() << '\n';
+      if (std::isfinite(steps[s])) curve << s + 1 << ' ' << steps[s] << '\n';
     std::ofstream loss(plots / ("loss_" + std::to_string(r) + ".dat"));
     std::ofstream valid_out(plots / ("valid_" + std::to_string(r) + ".dat"));
     std::ifstream log(fs::path(runs[r].dir) / "train_log.csv");
@@ -102,11 +102,11 @@ std::string write_report(const ReportRequest& request) {
   {
     std::ofstream speed(plots / "speed.dat");
     for (size_t r = 0; r < runs.size(); ++r) {
-      const Json& m = runs[r].metrics;
+      const RolloutMetrics& m = runs[r].metrics;
       speed << '"' << runs[r].label << "\" "
-            << format_number(m["infer_ms_per_step"], 6, Notation::kFixed) << ' '
-            << format_number(field(m, "rmse_all", primary_field(m)), 8, Notation::kFixed) << '\n';
-      if (m["solver_ms_per_frame"].is_number()) solver_ms = m["solver_ms_per_frame"].get<double>();
+            << format_number(m.infer_ms_per_step, 6, Notation::kFixed) << ' '
+            << format_number(primary_rmse(m, m.rmse_all), 8, Notation::kFixed) << '\n';
+      if (m.solver_ms_per_frame) solver_ms = *m.solver_ms_per_frame;
     }
     // The solver is the reference: error 0 by definition.
     if (solver_ms > 0) speed << "\"UMLS-MPM solver (ground truth)\" " << solver_ms << " 0\n";
@@ -162,7 +162,7 @@ std::string write_report(const ReportRequest& request) {
   }
   // Ground truth next to prediction: first trajectory of each run, three frames.
   for (size_t r = 0; r < runs.size(); ++r) {
-    const std::string split = runs[r].metrics.value("split", "test");
+    const std::string& split = runs[r].metrics.split;
     const fs::path h5 = fs::path(runs[r].dir) / "rollout" / (split + ".h5");
     if (!fs::exists(h5)) continue;
     const Dataset d(h5.string());
@@ -205,35 +205,38 @@ std::string write_report(const ReportRequest& request) {
         "peak RAM infer (MB) | nodes | threads |\n"
      << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : runs) {
-    const Json& m = r.metrics;
-    md << "| " << fs::path(r.dir).filename().string() << " | " << m.value("model", "?") << " | "
-       << m.value("levels", 0) << " | "
-       << (m.contains("train_steps") ? m["train_steps"].dump() : "–") << " | "
-       << format_number(m["train_ms_per_step"], 1, Notation::kFixed) << " | "
-       << format_number(m["infer_ms_per_step"], 2, Notation::kFixed) << " | "
-       << format_number(m["solver_ms_per_frame"], 1, Notation::kFixed) << " | "
-       << format_number(m["speedup_vs_solver"], 3, Notation::kFixed) << " | "
-       << format_number(field(m, "rmse_1", primary_field(m)), 2, Notation::kScientific) << " | "
-       << format_number(field(m, "rmse_50", primary_field(m)), 2, Notation::kScientific) << " | "
-       << format_number(field(m, "rmse_all", primary_field(m)), 2, Notation::kScientific) << " | "
-       << format_number(m.value("inverted_cells_max", Json()), 4, Notation::kFixed) << " | "
-       << format_number(m.value("peak_rss_mb_train", Json()), 0, Notation::kFixed) << " | "
-       << format_number(m.value("peak_rss_mb_infer", Json()), 0, Notation::kFixed) << " | "
-       << format_number(m.value("num_nodes_mean", Json()), 0, Notation::kFixed) << " | "
-       << m.value("threads", 0) << " |\n";
-    if (m.contains("diverged") && !m["diverged"].empty())
-      md << "\n_" << r.label << " diverged (non-finite prediction): " << m["diverged"].dump()
-         << "_\n";
+    const RolloutMetrics& m = r.metrics;
+    md << "| " << fs::path(r.dir).filename().string() << " | " << m.model << " | " << m.levels
+       << " | " << (m.train_steps ? std::to_string(*m.train_steps) : "–") << " | "
+       << format_number(or_nan(m.train_ms_per_step), 1, Notation::kFixed) << " | "
+       << format_number(m.infer_ms_per_step, 2, Notation::kFixed) << " | "
+       << format_number(or_nan(m.solver_ms_per_frame), 1, Notation::kFixed) << " | "
+       << format_number(or_nan(m.speedup_vs_solver), 3, Notation::kFixed) << " | "
+       << format_number(primary_rmse(m, m.rmse_1), 2, Notation::kScientific) << " | "
+       << format_number(primary_rmse(m, m.rmse_50), 2, Notation::kScientific) << " | "
+       << format_number(primary_rmse(m, m.rmse_all), 2, Notation::kScientific)
+       << " | "
+       // Eulerian runs have no cells that could invert.
+       << format_number(m.eulerian ? std::nan("") : m.inverted_cells_max, 4, Notation::kFixed)
+       << " | " << format_number(or_nan(m.peak_rss_mb_train), 0, Notation::kFixed) << " | "
+       << format_number(m.peak_rss_mb_infer, 0, Notation::kFixed) << " | "
+       << format_number(m.num_nodes_mean, 0, Notation::kFixed) << " | " << m.threads << " |\n";
+    if (!m.diverged.empty()) {
+      md << "\n_" << r.label << " diverged (non-finite prediction):";
+      for (const DivergedTrajectory& d : m.diverged)
+        md << " trajectory " << d.trajectory << " at frame " << d.frame << ";";
+      md << "_\n";
+    }
   }
   // What a model must beat: extrapolating the first velocity of each test trajectory.
-  const Json cv = runs.front().metrics.value("rmse_all_constant_velocity", Json());
-  const Json held = field(runs.front().metrics, "rmse_all_persistence", "velocity");
-  if (held.is_number())
+  const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);
+  const double held = RolloutMetrics::rmse(runs.front().metrics.rmse_all_persistence, "velocity");
+  if (std::isfinite(held))
     md << "\nEulerian runs: RMSE columns are the velocity's (per-field figures in each run's "
           "metrics.json). Reference without a model: holding the first frame on the solved nodes "
           "gives a velocity RMSE-all of "
        << format_number(held, 2, Notation::kScientific) << ".\n";
-  if (cv.is_number())
+  if (std::isfinite(cv))
     md << "\nReference without a model: extrapolating each trajectory's first velocity (zero "
           "acceleration) gives RMSE-all "
        << format_number(cv, 2, Notation::kScientific)

@@ -10,10 +10,12 @@
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
-#include "data/dataset/xdmf.hpp"
 #include "models/graph_ops.hpp"
 #include "pipeline/eulerian.hpp"
 #include "pipeline/lagrangian.hpp"
+#include "pipeline/rollout_eulerian.hpp"
+#include "pipeline/rollout_metrics.hpp"
+#include "pipeline/rollout_outputs.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
 #include "pipeline/trainer.hpp"
@@ -22,12 +24,6 @@ namespace bsms {
 namespace fs = std::filesystem;
 
 namespace {
-
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 // Mean squared error per predicted step, per field, accumulated over trajectories.
 struct ErrorCurves {
@@ -69,7 +65,7 @@ double inverted_fraction(const torch::Tensor& cells, const torch::Tensor& refere
   return (sign * reference_sign <= 0).to(torch::kFloat64).mean().item<double>();
 }
 
-Json rmse_over(const ErrorCurves& c, size_t steps) {
+std::optional<FieldRmse> rmse_over(const ErrorCurves& c, size_t steps) {
   double pos = 0, vel = 0;
   int64_t n = 0;
   for (size_t s = 0; s < std::min(steps, c.count.size()); ++s) {
@@ -77,240 +73,18 @@ Json rmse_over(const ErrorCurves& c, size_t steps) {
     vel += c.vel_sum[s];
     n += c.count[s];
   }
-  if (n == 0) return Json(nullptr);
+  if (n == 0) return std::nullopt;
   pos /= static_cast<double>(n);
   vel /= static_cast<double>(n);
-  return Json{{"world_pos", std::sqrt(pos)},
-              {"velocity", std::sqrt(vel)},
-              {"total", std::sqrt(0.5 * (pos + vel))}};
-}
-
-// Folder of the rollout outputs and the multilevel caches of a run's rollout.
-fs::path rollout_out_dir(const RolloutRequest& request) {
-  return request.out.empty() ? fs::path(request.run) / "rollout" : fs::path(request.out);
-}
-
-// Writes the XDMF companions of a rollout file.
-void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,
-                      const std::string& split) {
-  const Dataset written(out_h5);
-  for (int64_t t = 0; t < written.num_trajectories(); ++t) {
-    char name[64];
-    std::snprintf(name, sizeof name, "%s_%06lld.xdmf", split.c_str(), static_cast<long long>(t));
-    write_trajectory_xdmf(written, t, (out_dir / name).string());
-  }
-}
-
-// Training figures a run folder recorded, copied into the metrics.
-void add_train_stats(Json& metrics, const std::string& run) {
-  const std::string stats_file = run_stats_path(run);
-  if (fs::exists(stats_file)) {
-    const Json stats = load_json_file(stats_file);
-    metrics["train_ms_per_step"] = stats.value("train_ms_per_step", 0.0);
-    metrics["peak_rss_mb_train"] = stats.value("peak_rss_mb_train", 0.0);
-    metrics["train_steps"] = stats.value("steps", 0);
-  } else {
-    metrics["train_ms_per_step"] = nullptr;
-    metrics["peak_rss_mb_train"] = nullptr;
-  }
-}
-
-// Eulerian rollout: the state (velocity, density) advances by the predicted change on NORMAL and
-// OUTFLOW nodes, every other node keeps its ground truth; pressure is read from the output.
-// Metrics per field, beside persistence (the first frame held: no model).
-Json rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
-                      const EulerianSpec& spec, int levels) {
-  const std::string run = request.run;
-  const int threads = configure_threads(set_num_threads(request.threads));
-  auto simulator = std::make_shared<LearnedSimulator>(model_shape(spec), config.model, levels);
-  load_checkpoint(run_checkpoint_path(run), *simulator, nullptr);
-  simulator->eval();
-
-  const std::string data_dir = request.data.empty() ? config.data : request.data;
-  const Dataset data = Dataset::open_split(data_dir, request.split);
-  if (data.mesh(0).dim != spec.dim)
-    throw InputError(data.location() + ": mesh dimension " + std::to_string(data.mesh(0).dim) +
-                     " differs from the model's " + std::to_string(spec.dim));
-  for (const FieldInfo& f : spec.state_fields())
-    if (!data.has_field(f.name))
-      throw InputError(data.location() + ": the model needs the field " + f.name);
-  if (spec.pressure && !data.has_field("pressure"))
-    throw InputError(data.location() + ": the model needs the field pressure");
-  const int64_t count = request.max_trajectories > 0
-                            ? std::min(request.max_trajectories, data.num_trajectories())
-                            : data.num_trajectories();
-  std::error_code ec;
-  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
-                                         (fs::path(run) / "multilevel").string()};
-  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  const Seeding seeding =
-      request.seeding.empty() ? config.model.seeding : parse_seeding(request.seeding);
-  GraphStore store(seeding, levels, cache_dirs);
-  const EulerianAdapter adapter(spec);
-
-  const fs::path out_dir = rollout_out_dir(request);
-  fs::create_directories(out_dir, ec);
-  const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
-  DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
-
-  // Per field: squared error sums per step (model, persistence) and node-value counts.
-  std::vector<FieldInfo> outputs = spec.state_fields();
-  if (spec.pressure) outputs.push_back({"pressure", 1});
-  const size_t nf = outputs.size();
-  std::vector<std::vector<double>> sq(nf), sq_hold(nf);
-  std::vector<std::vector<double>> values(nf);
-  std::vector<double> infer_ms;
-  double nodes_total = 0;
-  Json diverged = Json::array();
-  ProgressBar bar("rollout " + request.split, count);
-  torch::InferenceMode inference;
-  for (int64_t t = 0; t < count; ++t) {
-    const TrajectoryMesh& mesh = data.mesh(t);
-    const int64_t n = mesh.num_nodes();
-    nodes_total += static_cast<double>(n);
-    int64_t frames = data.num_frames(t);
-    if (request.max_steps > 0) frames = std::min(frames, request.max_steps + 1);
-    if (frames < 2)
-      throw InputError(data.location() + ": trajectory " + std::to_string(t) +
-                       " has fewer than 2 frames");
-    const auto truth = read_eulerian_state(data, spec, t, 0, frames);  // [T, N, S]
-    const auto truth_p = read_eulerian_pressure(data, spec, t, 0, frames);
-    const MeshGraphs& graphs = store.get(mesh);
-    std::vector<torch::Tensor> pred = {truth[0]}, pred_p;
-    if (spec.pressure) pred_p.push_back(truth_p[0]);
-    torch::Tensor held;  // persistence: the first frame on predicted nodes, the truth elsewhere
-    for (int64_t f = 0; f + 1 < frames; ++f) {
-      Stopwatch clock;
-      const Batch batch = adapter.make_batch({EulerianFrame{&graphs, &mesh, pred[f]}});
-      const auto output = simulator->predict(batch);
-      auto [state, pressure] = adapter.integrate(batch, output, truth[f + 1],
-                                                 spec.pressure ? truth_p[f + 1] : torch::Tensor());
-      infer_ms.push_back(clock.milliseconds());
-      if (!torch::isfinite(state).all().item<bool>() ||
-          (pressure.defined() && !torch::isfinite(pressure).all().item<bool>())) {
-        diverged.push_back({{"trajectory", t}, {"frame", f + 1}});
-        break;
-      }
-      pred.push_back(state);
-      if (spec.pressure) pred_p.push_back(pressure);
-      held = torch::where(batch.mask.unsqueeze(1), truth[0], truth[f + 1]);
-      const auto err = state - truth[f + 1], err_hold = held - truth[f + 1];
-      int64_t c0 = 0;
-      for (size_t k = 0; k < nf; ++k) {
-        if (sq[k].size() <= static_cast<size_t>(f)) {
-          sq[k].resize(f + 1, 0.0);
-          sq_hold[k].resize(f + 1, 0.0);
-          values[k].resize(f + 1, 0.0);
-        }
-        const int64_t w = outputs[k].width;
-        if (outputs[k].name == "pressure") {
-          sq[k][f] += (pressure - truth_p[f + 1]).square().sum().item<double>();
-          sq_hold[k][f] +=
-              (torch::where(batch.mask.unsqueeze(1), truth_p[0], truth_p[f + 1]) - truth_p[f + 1])
-                  .square()
-                  .sum()
-                  .item<double>();
-        } else {
-          sq[k][f] += err.slice(1, c0, c0 + w).square().sum().item<double>();
-          sq_hold[k][f] += err_hold.slice(1, c0, c0 + w).square().sum().item<double>();
-          c0 += w;
-        }
-        values[k][f] += static_cast<double>(n);
-      }
-    }
-    Trajectory out;
-    out.mesh = mesh;
-    out.seed = data.seed(t);
-    out.parameters = data.parameters(t);
-    out.num_frames = static_cast<int64_t>(pred.size());
-    auto put = [&](const std::string& name, const torch::Tensor& v) {
-      const auto c = v.contiguous();
-      out.fields[name] = std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
-    };
-    const auto stacked = torch::stack(pred);
-    const auto target = truth.slice(0, 0, out.num_frames);
-    int64_t c0 = 0;
-    for (const FieldInfo& field : spec.state_fields()) {
-      put(field.name, stacked.slice(2, c0, c0 + field.width));
-      put("target_" + field.name, target.slice(2, c0, c0 + field.width));
-      c0 += field.width;
-    }
-    if (spec.pressure) {
-      put("pressure", torch::stack(pred_p));
-      put("target_pressure", truth_p.slice(0, 0, out.num_frames));
-    }
-    writer.add(out);
-    if (!request.quiet) bar.update(t + 1);
-  }
-  writer.commit();
-  if (!request.quiet) bar.finish();
-  write_xdmf_files(out_h5, out_dir, request.split);
-
-  // RMSE per field over the first `steps` predicted steps; "total" is the RMS of the fields'
-  // RMSEs (fields have different units: compare totals only between models on one dataset).
-  auto rmse_over = [&](const std::vector<std::vector<double>>& sums, size_t steps) {
-    Json j = Json::object();
-    double total = 0;
-    for (size_t k = 0; k < nf; ++k) {
-      double s = 0, v = 0;
-      for (size_t f = 0; f < std::min(steps, sums[k].size()); ++f) {
-        s += sums[k][f];
-        v += values[k][f] * static_cast<double>(outputs[k].width);
-      }
-      if (v == 0) return Json(nullptr);
-      j[outputs[k].name] = std::sqrt(s / v);
-      total += s / v;
-    }
-    j["total"] = std::sqrt(total / static_cast<double>(nf));
-    return j;
-  };
-  const size_t all = sq.empty() ? 0 : sq[0].size();
-  Json metrics;
-  metrics["model"] = config.model.type;
-  metrics["kind"] = "eulerian";
-  metrics["split"] = request.split;
-  metrics["data"] = data.location();
-  metrics["num_trajectories"] = count;
-  metrics["rmse_1"] = rmse_over(sq, 1);
-  metrics["rmse_50"] = rmse_over(sq, 50);
-  metrics["rmse_all"] = rmse_over(sq, all);
-  // What no model achieves: the first frame held on the predicted nodes.
-  metrics["rmse_1_persistence"] = rmse_over(sq_hold, 1);
-  metrics["rmse_all_persistence"] = rmse_over(sq_hold, all);
-  Json per_step = Json::object();
-  for (size_t k = 0; k < nf; ++k) {
-    Json curve = Json::array();
-    for (size_t f = 0; f < sq[k].size(); ++f)
-      curve.push_back(std::sqrt(sq[k][f] / (values[k][f] * static_cast<double>(outputs[k].width))));
-    per_step[outputs[k].name] = curve;
-  }
-  metrics["rmse_per_step"] = per_step;
-  metrics["seeding"] = to_string(seeding);
-  metrics["infer_ms_per_step"] = median(infer_ms);
-  metrics["solver_ms_per_frame"] = nullptr;
-  metrics["speedup_vs_solver"] = nullptr;
-  metrics["peak_rss_mb_infer"] = peak_rss_mb();
-  metrics["num_nodes_mean"] = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
-  metrics["threads"] = threads;
-  metrics["diverged"] = diverged;
-  metrics["levels"] = levels;
-  add_train_stats(metrics, run);
-  write_json_atomic((out_dir / "metrics.json").string(), metrics);
-  if (!request.quiet) {
-    std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all";
-    if (!metrics["rmse_all"].is_null())
-      for (const auto& f : outputs)
-        std::cerr << " " << f.name << " " << metrics["rmse_all"][f.name].get<double>() << " (held "
-                  << metrics["rmse_all_persistence"][f.name].get<double>() << ")";
-    std::cerr << ", " << metrics["infer_ms_per_step"].get<double>() << " ms/step -> "
-              << (out_dir / "metrics.json").string() << "\n";
-  }
-  return metrics;
+  FieldRmse rmse;
+  rmse.fields = {{"world_pos", std::sqrt(pos)}, {"velocity", std::sqrt(vel)}};
+  rmse.total = std::sqrt(0.5 * (pos + vel));
+  return rmse;
 }
 
 }  // namespace
 
-Json rollout(const RolloutRequest& request) {
+RolloutMetrics rollout(const RolloutRequest& request) {
   const std::string run = request.run;
   const RunFolder folder = RunFolder::open(run);
   const std::string& config_file = folder.config_path;
@@ -349,7 +123,7 @@ Json rollout(const RolloutRequest& request) {
   GraphStore store(seeding, levels, cache_dirs);
   LagrangianAdapter adapter(spec);
 
-  const fs::path out_dir = rollout_out_dir(request);
+  const fs::path out_dir = rollout_outputs::out_dir(request);
   fs::create_directories(out_dir, ec);
   const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
   DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
@@ -361,7 +135,7 @@ Json rollout(const RolloutRequest& request) {
   double inertial_sq = 0.0;
   int64_t inertial_count = 0;
   double nodes_total = 0;
-  Json diverged = Json::array();
+  std::vector<DivergedTrajectory> diverged;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
   for (int64_t t = 0; t < count; ++t) {
@@ -393,7 +167,7 @@ Json rollout(const RolloutRequest& request) {
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
       infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(next).all().item<bool>()) {
-        diverged.push_back({{"trajectory", t}, {"frame", f + 1}});
+        diverged.push_back({t, f + 1});
         break;
       }
       pred.push_back(next);
@@ -431,54 +205,49 @@ Json rollout(const RolloutRequest& request) {
   }
   writer.commit();
   if (!request.quiet) bar.finish();
-  write_xdmf_files(out_h5, out_dir, request.split);
+  rollout_outputs::write_xdmf_files(out_h5, out_dir, request.split);
 
-  Json metrics;
-  metrics["model"] = config.model.type;
-  metrics["split"] = request.split;
-  metrics["data"] = data.location();
-  metrics["num_trajectories"] = count;
-  metrics["rmse_1"] = rmse_over(curves, 1);
-  metrics["rmse_50"] = rmse_over(curves, 50);
-  metrics["rmse_all"] = rmse_over(curves, curves.count.size());
-  metrics["rmse_all_constant_velocity"] =
-      inertial_count > 0 ? Json(std::sqrt(inertial_sq / static_cast<double>(inertial_count)))
-                         : Json(nullptr);
-  Json per_step = Json::array();
+  RolloutMetrics metrics;
+  metrics.model = config.model.type;
+  metrics.split = request.split;
+  metrics.data = data.location();
+  metrics.num_trajectories = count;
+  metrics.rmse_1 = rmse_over(curves, 1);
+  metrics.rmse_50 = rmse_over(curves, 50);
+  metrics.rmse_all = rmse_over(curves, curves.count.size());
+  if (inertial_count > 0)
+    metrics.rmse_all_constant_velocity =
+        std::sqrt(inertial_sq / static_cast<double>(inertial_count));
+  std::vector<double>& per_step = metrics.rmse_per_step["world_pos"];
   for (size_t s = 0; s < curves.count.size(); ++s)
     per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));
-  metrics["rmse_per_step"] = {{"world_pos", per_step}};
   // Stability: the fraction of predicted cells turned inside out (orientation flipped against
   // the first frame), per step and at worst; the ground truth has none (the solver stops on J <=
   // 0).
-  Json inverted = Json::array();
-  double worst_inverted = 0.0;
   for (size_t s = 0; s < curves.count.size(); ++s) {
     const double f = curves.inverted_sum[s] / static_cast<double>(curves.count[s]);
-    inverted.push_back(f);
-    worst_inverted = std::max(worst_inverted, f);
+    metrics.inverted_cells_per_step.push_back(f);
+    metrics.inverted_cells_max = std::max(metrics.inverted_cells_max, f);
   }
-  metrics["inverted_cells_per_step"] = inverted;
-  metrics["inverted_cells_max"] = worst_inverted;
-  metrics["seeding"] = to_string(seeding);
-  metrics["infer_ms_per_step"] = median(infer_ms);
-  const double solver_ms = solver_ms_per_frame.empty() ? -1.0 : median(solver_ms_per_frame);
-  metrics["solver_ms_per_frame"] = solver_ms >= 0 ? Json(solver_ms) : Json(nullptr);
-  metrics["speedup_vs_solver"] =
-      solver_ms >= 0 && median(infer_ms) > 0 ? Json(solver_ms / median(infer_ms)) : Json(nullptr);
-  metrics["peak_rss_mb_infer"] = peak_rss_mb();
-  metrics["num_nodes_mean"] = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
-  metrics["threads"] = threads;
-  metrics["diverged"] = diverged;
-  metrics["levels"] = levels;
-  add_train_stats(metrics, run);
-  write_json_atomic((out_dir / "metrics.json").string(), metrics);
+  metrics.seeding = to_string(seeding);
+  metrics.infer_ms_per_step = rollout_outputs::median(infer_ms);
+  if (!solver_ms_per_frame.empty()) {
+    metrics.solver_ms_per_frame = rollout_outputs::median(solver_ms_per_frame);
+    if (metrics.infer_ms_per_step > 0)
+      metrics.speedup_vs_solver = *metrics.solver_ms_per_frame / metrics.infer_ms_per_step;
+  }
+  metrics.peak_rss_mb_infer = peak_rss_mb();
+  metrics.num_nodes_mean = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
+  metrics.threads = threads;
+  metrics.diverged = diverged;
+  metrics.levels = levels;
+  rollout_outputs::add_train_stats(metrics, run);
+  write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet)
     std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all(world_pos) "
-              << (metrics["rmse_all"].is_null() ? 0.0
-                                                : metrics["rmse_all"]["world_pos"].get<double>())
-              << ", " << metrics["infer_ms_per_step"].get<double>() << " ms/step -> "
-              << (out_dir / "metrics.json").string() << "\n";
+              << (metrics.rmse_all ? metrics.rmse_all->at("world_pos") : 0.0) << ", "
+              << metrics.infer_ms_per_step << " ms/step -> " << (out_dir / "metrics.json").string()
+              << "\n";
   return metrics;
 }
 

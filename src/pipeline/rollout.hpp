@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "core/config.hpp"
+#include "pipeline/rollout_metrics.hpp"
 
 namespace bsms {
 
@@ -22,6 +22,6 @@ struct RolloutRequest {
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").
-Json rollout(const RolloutRequest& request);
+RolloutMetrics rollout(const RolloutRequest& request);
 
 }  // namespace bsms

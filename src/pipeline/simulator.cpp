@@ -41,6 +41,7 @@ LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& c
   o.edge_set_stretch = shape.edge_set_stretch;
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
+  o.mp_per_level = config.mp_per_level;
   if (config.type == "bsms") {
     model_ = std::make_shared<BsmsGnn>(o);
   } else {

@@ -47,6 +47,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
         m.opt<int>("message_passing_steps", c.model.message_passing_steps);
     require(c.model.message_passing_steps >= 1 && c.model.message_passing_steps <= 100,
             m.context("message_passing_steps"), "in 1..100");
+    c.model.mp_per_level = m.opt<int>("mp_per_level", c.model.mp_per_level);
+    require(c.model.mp_per_level >= 1 && c.model.mp_per_level <= 16, m.context("mp_per_level"),
+            "in 1..16");
     m.finish();
   }
   if (top.has("features")) {
@@ -131,7 +134,8 @@ Json to_json(const TrainConfig& c) {
            {"latent", c.model.latent},
            {"levels", levels},
            {"seeding", to_string(c.model.seeding)},
-           {"message_passing_steps", c.model.message_passing_steps}}},
+           {"message_passing_steps", c.model.message_passing_steps},
+           {"mp_per_level", c.model.mp_per_level}}},
          {"features",
           {{"contact_radius", contact},
            {"noise_std", c.features.noise_std},

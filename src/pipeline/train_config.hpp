@@ -16,6 +16,7 @@ struct ModelConfig {
   int levels = 0;  // BSMS: total levels incl. the mesh; 0 = auto (from the mesh)
   Seeding seeding = Seeding::kMinAve;  // seeding of the multilevel graphs
   int message_passing_steps = 15;      // MeshGraphNets
+  int mp_per_level = 1;                // BSMS: message-passing blocks per level (down, bottom, up)
 };
 
 struct FeatureConfig {

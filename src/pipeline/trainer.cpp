@@ -15,20 +15,18 @@
 #include <iostream>
 #include <iterator>
 #include <memory>
-#include <set>
 #include <sstream>
 
 #include "core/error.hpp"
-#include "core/hash.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
-#include "models/layers.hpp"
 #include "pipeline/eulerian.hpp"
 #include "pipeline/fit.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
+#include "pipeline/training_data.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
@@ -47,268 +45,6 @@ std::string run_stats_path(const std::string& run) {
 }
 
 namespace {
-
-struct SampleRef {
-  int64_t trajectory;
-  int64_t frame;  // t: uses t-1, t, t+1
-};
-
-// Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
-// Data-parallel rank r of N draws slots r*b .. r*b+b-1 of the N*b of a step, so that N ranks of
-// batch size b train on the samples (and noise: noise_seed) of one rank of batch size N*b.
-SampleRef draw_sample(const Dataset& data, uint64_t seed, int64_t step, int slot) {
-  const uint64_t h = splitmix64(seed * 0x100000001b3ull ^ splitmix64(step * 4096 + slot));
-  const int64_t t = static_cast<int64_t>(h % static_cast<uint64_t>(data.num_trajectories()));
-  const int64_t frames = data.num_frames(t);
-  const int64_t f = 1 + static_cast<int64_t>(splitmix64(h) % static_cast<uint64_t>(frames - 2));
-  return {t, f};
-}
-
-// The training noise of slot `slot` of step `step`: one generator per sample.
-uint64_t noise_seed(uint64_t seed, int64_t step, int slot) {
-  return splitmix64(splitmix64(seed ^ (0x1234567ull + static_cast<uint64_t>(step))) ^
-                    static_cast<uint64_t>(slot));
-}
-
-std::string position_field(const Dataset& data) {
-  if (data.has_field("world_pos")) return "world_pos";
-  throw InputError(data.location() + ": a Lagrangian model needs the field world_pos");
-}
-
-struct LoadedSample {
-  FrameState state;
-  torch::Tensor next;
-};
-
-LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref) {
-  const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
-  const int64_t n = mesh.num_nodes();
-  const int dim = data.dim();
-  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1, 3);
-  auto x = torch::from_blob(frames.data(), {3, n, dim}, torch::kFloat32).clone();
-  LoadedSample s;
-  s.state.graphs = &store.get(mesh);
-  s.state.mesh = &mesh;
-  s.state.prev = x[0];
-  s.state.cur = x[1];
-  s.state.next = x[2];
-  s.next = x[2];
-  return s;
-}
-
-// RMS strain |x_ij| / |X_ij| - 1 over the mesh edges of up to 64 training frames (deterministic
-// in the seed); 0 when the data does not deform (the strain channel is then left out).
-double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
-  double sum = 0;
-  int64_t count = 0;
-  for (int i = 0; i < 64; ++i) {
-    const SampleRef ref = draw_sample(data, seed ^ 0x9e3779b97f4a7c15ull, -3, i);
-    const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
-    const MeshGraphs& graphs = store.get(mesh);
-    const int64_t n = mesh.num_nodes();
-    auto frame = data.read(ref.trajectory, position_field(data), ref.frame, 1);
-    const auto x = torch::from_blob(frame.data(), {n, data.dim()}, torch::kFloat32);
-    const auto X =
-        torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()), {n, mesh.dim}, torch::kFloat32);
-    const auto& edges = graphs.hierarchy.edge_sets[0][0];
-    if (edges.num_edges() == 0) continue;
-    const auto strain = edge_features({X, x}, {}, edges, EdgeStretch{0, 1, 1.0});
-    sum += strain.square().sum().item<double>();
-    count += strain.size(0);
-  }
-  const double rms = count > 0 ? std::sqrt(sum / static_cast<double>(count)) : 0.0;
-  return rms > 1e-6 ? rms : 0.0;
-}
-
-// Momentum "auto" keeps conservation only when the data holds it to this relative residual.
-constexpr double kMomentumTolerance = 0.05;
-
-// Relative residual sqrt(sum m |a - P a|^2 / sum m |a|^2) of the true accelerations of free
-// groups (P = project_momentum) over up to 64 training frames; NaN when no frame has a free group.
-double momentum_residual(const Dataset& data, GraphStore& store, const LagrangianSpec& spec,
-                         uint64_t seed) {
-  LagrangianAdapter adapter(spec);
-  double off = 0, all = 0;
-  for (int i = 0; i < 64; ++i) {
-    const SampleRef ref = draw_sample(data, seed ^ 0x7f4a7c159e3779b9ull, -4, i);
-    LoadedSample s = load_sample(data, store, ref);
-    const Batch batch = adapter.make_batch({s.state});
-    if (batch.num_groups == 0) continue;
-    const auto a = adapter.target(batch, s.next).to(torch::kFloat64);
-    const auto m = (batch.mass.to(torch::kFloat64) * (batch.group >= 0)).unsqueeze(1);
-    off += (m * (a - project_momentum(batch, a)).square()).sum().item<double>();
-    all += (m * a.square()).sum().item<double>();
-  }
-  return all > 0 ? std::sqrt(off / all) : std::nan("");
-}
-
-// Resolves what the data decides: the kind of model, dimensions, node types, position scale,
-// contact, levels.
-struct Resolved {
-  bool eulerian = false;  // fields on a fixed mesh (velocity, no world_pos)
-  LagrangianSpec spec;
-  EulerianSpec eulerian_spec;
-  int levels = 1;
-  std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
-  double momentum_residual = -1;  // measured on the training data when on
-
-  Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
-  ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
-};
-
-Resolved resolve(const TrainConfig& config, const Dataset& train_data) {
-  Resolved r;
-  if (!train_data.has_field("world_pos")) {
-    if (!train_data.has_field("velocity"))
-      throw InputError(train_data.location() +
-                       ": needs the field world_pos (a Lagrangian model) or velocity (an "
-                       "Eulerian model)");
-    r.eulerian = true;
-  }
-  const bool public_layout = train_data.is_public_layout();
-  const int mesh_dim = train_data.mesh(0).dim;
-  int max_type = 0;
-  bool several_bodies = false;
-  for (int64_t t = 0; t < train_data.num_trajectories(); ++t) {
-    const auto& m = train_data.mesh(t);
-    if (m.dim != mesh_dim)
-      throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
-                       " has mesh dimension " + std::to_string(m.dim) + ", expected " +
-                       std::to_string(mesh_dim));
-    if (train_data.num_frames(t) < 3)
-      throw InputError(train_data.location() + ": trajectory " + std::to_string(t) +
-                       " has fewer than 3 frames");
-    for (int32_t v : m.node_type) max_type = std::max(max_type, v);
-    std::set<int32_t> bodies(m.body_id.begin(), m.body_id.end());
-    several_bodies = several_bodies || bodies.size() > 1;
-  }
-  // Public data: MeshGraphNets' one-hot of width 9 (NORMAL 0 ... WALL_BOUNDARY 6).
-  const int num_node_types = config.features.num_node_types > 0 ? config.features.num_node_types
-                             : public_layout                    ? std::max(max_type + 1, 9)
-                                                                : std::max(max_type + 1, 4);
-  // Position scale: mean mesh edge length of the first training mesh.
-  GraphStore probe(Seeding::kCloseCenter, 1, {});
-  const double edge = probe.get(train_data.mesh(0)).mean_edge_length;
-  if (config.model.type == "mgn") {
-    r.levels = 1;
-  } else {
-    r.levels = config.model.levels > 0 ? config.model.levels
-                                       : auto_levels(train_data.mesh(0), config.model.seeding);
-  }
-  if (r.eulerian) {
-    EulerianSpec& e = r.eulerian_spec;
-    e.dim = mesh_dim;
-    const auto fields = train_data.fields();
-    for (const auto& f : fields)
-      if (f.name == "velocity" && f.width != mesh_dim)
-        throw InputError(train_data.location() + ": velocity has " + std::to_string(f.width) +
-                         " components, the mesh " + std::to_string(mesh_dim) + " dimensions");
-    e.num_node_types = num_node_types;
-    e.position_scale = edge > 0 ? edge : 1.0;
-    e.multilevel = config.model.type == "bsms";
-    e.density = train_data.has_field("density");
-    e.pressure = train_data.has_field("pressure");
-    return r;
-  }
-  LagrangianSpec& s = r.spec;
-  s.dim = train_data.dim();
-  s.mesh_dim = mesh_dim;
-  s.public_layout = public_layout;
-  s.multilevel = config.model.type == "bsms";
-  s.num_node_types = num_node_types;
-  s.position_scale = edge > 0 ? edge : 1.0;
-  s.first_order = config.features.output == "velocity";
-  s.kinematic_input = config.features.kinematic_input == "on" ||
-                      (config.features.kinematic_input == "auto" && public_layout);
-  s.velocity_input = config.features.velocity_input == "on" ||
-                     (config.features.velocity_input == "auto" && !s.first_order);
-  if (config.features.contact_radius < 0) {
-    // Public data states the radius of its world edges (DeformingPlate's collision_radius).
-    if (train_data.collision_radius() > 0)
-      s.contact_radius = train_data.collision_radius();
-    else if (several_bodies)
-      resolve_contact_radius(s, train_data.scene(), edge);
-  } else {
-    s.contact_radius = config.features.contact_radius;
-  }
-  if (config.features.strain == "auto") s.strain_scale = rms_strain(train_data, probe, config.seed);
-  // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
-  if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
-  if (config.features.momentum == "auto") {
-    r.momentum_note = resolve_momentum(s, train_data.scene());
-    if (s.has_momentum()) {
-      const double residual = momentum_residual(train_data, probe, s, config.seed);
-      if (!(residual <= kMomentumTolerance)) {
-        r.momentum_note = std::isnan(residual)
-                              ? std::string("the training data has no free body")
-                              : "the training data's free bodies do not conserve it (" +
-                                    std::to_string(100.0 * residual) + " % residual)";
-        s.momentum_radius = s.momentum_wall_range = 0.0;
-      } else {
-        r.momentum_residual = residual;
-      }
-    }
-  }
-  return r;
-}
-
-// One training or validation batch and its target.
-struct TrainBatch {
-  Batch batch;
-  torch::Tensor target;
-};
-
-// The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
-// of refs[k] is drawn from generators[k] (no noise without generators).
-TrainBatch make_train_batch(const Resolved& r, const TrainConfig& config, const Dataset& data,
-                            GraphStore& store, const std::vector<SampleRef>& refs,
-                            std::vector<at::Generator>* generators) {
-  TrainBatch b;
-  const bool noisy = generators != nullptr;
-  if (noisy && generators->size() != refs.size())
-    throw std::logic_error("make_train_batch: one generator per sample expected");
-  if (r.eulerian) {
-    const EulerianAdapter adapter(r.eulerian_spec);
-    std::vector<EulerianFrame> frames;
-    std::vector<torch::Tensor> nexts, pressures;
-    for (const SampleRef& ref : refs) {
-      const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
-      const auto state = read_eulerian_state(data, r.eulerian_spec, ref.trajectory, ref.frame, 2);
-      frames.push_back({&store.get(mesh), &mesh, state[0]});
-      nexts.push_back(state[1]);
-      if (r.eulerian_spec.pressure)
-        pressures.push_back(
-            read_eulerian_pressure(data, r.eulerian_spec, ref.trajectory, ref.frame + 1, 1)[0]);
-    }
-    std::vector<double> noise;
-    std::vector<at::Generator*> per_frame;
-    if (noisy) {
-      noise.assign(r.eulerian_spec.dim, config.features.noise_std);
-      if (r.eulerian_spec.density) noise.push_back(config.features.density_noise_std);
-      for (auto& g : *generators) per_frame.push_back(&g);
-    }
-    b.batch = adapter.make_batch(frames, noise, per_frame);
-    b.target = adapter.target(b.batch, torch::cat(nexts, 0),
-                              pressures.empty() ? torch::Tensor() : torch::cat(pressures, 0),
-                              noisy ? config.features.noise_gamma : 1.0);
-    return b;
-  }
-  const LagrangianAdapter adapter(r.spec);
-  std::vector<FrameState> states;
-  std::vector<torch::Tensor> nexts, noise;
-  for (size_t k = 0; k < refs.size(); ++k) {
-    LoadedSample s = load_sample(data, store, refs[k]);
-    states.push_back(s.state);
-    nexts.push_back(s.next);
-    if (noisy)
-      noise.push_back(torch::randn(s.state.cur.sizes(), (*generators)[k], torch::kFloat32) *
-                      config.features.noise_std);
-  }
-  b.batch = adapter.make_batch(states, noise);
-  b.target =
-      adapter.target(b.batch, torch::cat(nexts, 0), noisy ? config.features.noise_gamma : 1.0);
-  return b;
-}
 
 // A log row's step, or -1 unless `line` is a whole row (a step and 5 more fields).
 int64_t log_row_step(const std::string& line) {
@@ -422,7 +158,7 @@ TrainResult train(const TrainRequest& request) {
   // A missing valid split validates on training data and says so; a broken one is an error.
   const bool has_valid = Dataset::has_split(config.data, "valid");
   const Dataset valid_data = Dataset::open_split(config.data, has_valid ? "valid" : "train");
-  const Resolved resolved = resolve(config, train_data);
+  const ResolvedModel resolved = resolve_model(config, train_data);
 
   // Data parallelism: every rank has checked its config and data; now they meet.
   std::unique_ptr<Communicator> comm;

@@ -5,6 +5,7 @@
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -24,8 +25,22 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// One folder per test process, removed when it ends: ctest runs the tests of this file as
+// parallel processes, and several of them write the same file names (the plate in every format).
+const fs::path& temp_dir() {
+  static const struct Dir {
+    fs::path path = fs::temp_directory_path() / ("bsms_msh_" + std::to_string(::getpid()));
+    Dir() { fs::create_directories(path); }
+    ~Dir() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  } dir;
+  return dir.path;
+}
+
 std::string temp_path(const std::string& name) {
-  return (fs::temp_directory_path() / ("bsms_msh_" + name)).string();
+  return (temp_dir() / name).string();
 }
 
 std::string write_bytes(const std::string& name, const std::string& bytes) {

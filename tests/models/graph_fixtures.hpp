@@ -1,5 +1,5 @@
 // Small meshes and a brute-force bi-stride builder (DESIGN.md items 1-6, lowest-index seeds) for
-// the model tests, independent of preprocess/.
+// the model tests, independent of preprocess/ (as models/ is).
 #pragma once
 
 #include <torch/types.h>
@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "core/graph.hpp"
-#include "preprocess/multilevel_graph.hpp"
+#include "models/graph_tensors.hpp"
 
 namespace bsms::testing {
 
@@ -36,9 +36,21 @@ inline GridMesh grid_mesh(int64_t nx, int64_t ny) {
   return mesh;
 }
 
+// One level in the index form of preprocess/'s GraphLevel (and of the multilevel file).
+struct ReferenceLevel {
+  CsrGraph graph;                  // symmetric adjacency among this level's nodes
+  std::vector<int64_t> pooled;     // (k >= 1) indices into level k-1 kept at level k, ascending
+  std::vector<float> down_weight;  // (k >= 1) weight of each level-(k-1) edge, CSR edge order
+  int64_t num_nodes() const { return graph.num_nodes; }
+};
+
+struct ReferenceMultilevel {
+  std::vector<ReferenceLevel> levels;  // levels[0] is the mesh graph
+};
+
 // Bi-stride levels with the lowest node of each cluster as seed; weights per DESIGN.md item 6.
-inline MultilevelGraph reference_multilevel(const CsrGraph& mesh_graph, int num_levels) {
-  MultilevelGraph out;
+inline ReferenceMultilevel reference_multilevel(const CsrGraph& mesh_graph, int num_levels) {
+  ReferenceMultilevel out;
   out.levels.emplace_back();
   out.levels.back().graph = mesh_graph;
   std::vector<double> w(mesh_graph.num_nodes, 1.0);
@@ -59,7 +71,7 @@ inline MultilevelGraph reference_multilevel(const CsrGraph& mesh_graph, int num_
       const auto& kept = (even.size() <= odd.size() || odd.empty()) ? even : odd;
       for (int64_t i : kept) keep[i] = 1;
     }
-    GraphLevel level;
+    ReferenceLevel level;
     std::vector<int64_t> coarse(n, -1);
     for (int64_t i = 0; i < n; ++i) {
       if (keep[i]) {
@@ -95,6 +107,22 @@ inline MultilevelGraph reference_multilevel(const CsrGraph& mesh_graph, int num_
     out.levels.push_back(std::move(level));
   }
   return out;
+}
+
+// The tensors of a reference multilevel graph, assembled as src/pipeline/multilevel_tensors.hpp
+// assembles them from a MultilevelGraph (transitions[0] empty, transitions[k] joins k-1 and k).
+inline MultilevelTensors reference_tensors(const ReferenceMultilevel& graph) {
+  MultilevelTensors h;
+  for (size_t k = 0; k < graph.levels.size(); ++k) {
+    const ReferenceLevel& level = graph.levels[k];
+    h.edge_sets.push_back({EdgeIndex::from_csr(level.graph)});
+    h.node_offsets.push_back({0, level.num_nodes()});
+    h.transitions.push_back(
+        k > 0 ? LevelTransition::from_down_weights(graph.levels[k - 1].graph, level.pooled,
+                                                   level.down_weight, static_cast<int>(k))
+              : LevelTransition{});
+  }
+  return h;
 }
 
 }  // namespace bsms::testing

@@ -205,7 +205,8 @@ TEST(GraphOps, EmptyEdgeSetGivesZeros) {
 }
 
 // Dense transition matrix over all fine nodes: M[j, i] = down_weight of edge i -> j.
-torch::Tensor dense_weights(const GraphLevel& fine, const GraphLevel& coarse) {
+torch::Tensor dense_weights(const testing::ReferenceLevel& fine,
+                            const testing::ReferenceLevel& coarse) {
   const auto& g = fine.graph;
   auto m = torch::zeros({g.num_nodes, g.num_nodes});
   for (int64_t i = 0; i < g.num_nodes; ++i) {
@@ -220,7 +221,7 @@ TEST(Transitions, MatchDenseFormula) {
   torch::manual_seed(5);
   auto mesh = testing::grid_mesh(7, 5);
   auto graph = testing::reference_multilevel(mesh.graph, 4);
-  auto hierarchy = make_multilevel_tensors(graph);
+  auto hierarchy = testing::reference_tensors(graph);
   ASSERT_EQ(hierarchy.num_levels(), 4);
   for (int k = 0; k + 1 < 4; ++k) {
     const auto& fine = graph.levels[k];
@@ -248,7 +249,7 @@ TEST(Transitions, MatchDenseFormula) {
 TEST(Transitions, IndexIsTheCoarseLevel) {
   auto mesh = testing::grid_mesh(9, 8);
   auto graph = testing::reference_multilevel(mesh.graph, 4);
-  const MultilevelTensors single = make_multilevel_tensors(graph);
+  const MultilevelTensors single = testing::reference_tensors(graph);
   const MultilevelTensors merged = merge_multilevel_tensors({&single, &single});
   for (const MultilevelTensors* h : {&single, &merged}) {
     const MultilevelTensors& hierarchy = *h;
@@ -265,7 +266,7 @@ TEST(Transitions, IndexIsTheCoarseLevel) {
 TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
   auto mesh = testing::grid_mesh(9, 8);
   auto graph = testing::reference_multilevel(mesh.graph, 5);
-  auto hierarchy = make_multilevel_tensors(graph);
+  auto hierarchy = testing::reference_tensors(graph);
   for (int k = 1; k < 5; ++k) {
     const auto& t = hierarchy.transitions[k];
     auto ones = torch::full({t.fine_nodes, 3}, 2.5f);
@@ -281,8 +282,8 @@ TEST(Transitions, DownKeepsConstantFieldUpConservesSum) {
 
 TEST(MultilevelTensors, MergeIsBlockDiagonal) {
   auto m1 = testing::grid_mesh(5, 4), m2 = testing::grid_mesh(3, 6);
-  auto h1 = make_multilevel_tensors(testing::reference_multilevel(m1.graph, 3));
-  auto h2 = make_multilevel_tensors(testing::reference_multilevel(m2.graph, 3));
+  auto h1 = testing::reference_tensors(testing::reference_multilevel(m1.graph, 3));
+  auto h2 = testing::reference_tensors(testing::reference_multilevel(m2.graph, 3));
   auto merged = merge_multilevel_tensors({&h1, &h2});
   for (int k = 0; k < 3; ++k) {
     EXPECT_EQ(merged.num_nodes(k), h1.num_nodes(k) + h2.num_nodes(k));
@@ -303,16 +304,14 @@ TEST(MultilevelTensors, MergeIsBlockDiagonal) {
                                transition_down(x2, h2.transitions[k + 1])}));
     }
   }
-  auto h3 = make_multilevel_tensors(testing::reference_multilevel(m2.graph, 2));
+  auto h3 = testing::reference_tensors(testing::reference_multilevel(m2.graph, 2));
   EXPECT_THROW(merge_multilevel_tensors({&h1, &h3}), InputError);
 }
 
-TEST(MultilevelTensors, ExtraEdgeSetsAndCache) {
+// MultilevelTensorCache (src/pipeline/multilevel_tensors.hpp) is tested in tests/pipeline.
+TEST(MultilevelTensors, ExtraEdgeSets) {
   auto mesh = testing::grid_mesh(4, 4);
-  auto graph = testing::reference_multilevel(mesh.graph, 3);
-  MultilevelTensorCache cache;
-  const auto& h = cache.get("grid", graph);
-  EXPECT_EQ(&h, &cache.get("grid", graph));  // built once
+  const auto h = testing::reference_tensors(testing::reference_multilevel(mesh.graph, 3));
   auto contact = torch::tensor({0, 15, 15, 0}, torch::kInt64).reshape({2, 2});
   auto with = h.with_edge_sets({{contact}});
   ASSERT_EQ(with.edge_sets[0].size(), 2u);
@@ -328,10 +327,6 @@ TEST(MultilevelTensors, ExtraEdgeSetsAndCache) {
   EXPECT_EQ(from_lists.edge_sets[2][1].num_edges(), 0);
   level1.data = {1, 99};
   EXPECT_THROW(h.with_edge_sets(std::vector<EdgeList>{level0, level1}), InputError);
-  const auto& b = cache.batch({"grid", "grid"});
-  EXPECT_EQ(b.num_nodes(0), 32);
-  EXPECT_EQ(&b, &cache.batch({"grid", "grid"}));
-  EXPECT_THROW(cache.batch({"other"}), InputError);
 }
 
 }  // namespace

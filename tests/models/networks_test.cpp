@@ -40,7 +40,7 @@ struct Problem {
 Problem make_problem(int64_t nx, int64_t ny, int levels, bool contacts) {
   auto mesh = testing::grid_mesh(nx, ny);
   Problem p;
-  p.graph = make_multilevel_tensors(testing::reference_multilevel(mesh.graph, levels));
+  p.graph = testing::reference_tensors(testing::reference_multilevel(mesh.graph, levels));
   if (contacts) {
     std::vector<std::vector<torch::Tensor>> extra;
     for (int k = 0; k < levels; ++k) {
@@ -75,6 +75,55 @@ TEST(Networks, OutputShapeAndGradientsReachEveryParameter) {
       EXPECT_GT(param.value().grad().abs().sum().item<double>(), 0.0) << param.key();
     }
   }
+}
+
+// mp_per_level = 2 keeps every parameter name of the one-block model (old checkpoints load) and
+// adds one block per level down and up and one at the bottom; with the extra blocks' node updates
+// zeroed (they are residual) it computes exactly what the one-block model computes.
+TEST(Networks, MoreBlocksPerLevelExtendTheOneBlockModel) {
+  torch::manual_seed(12);
+  const int levels = 3;
+  auto p = make_problem(7, 6, levels, true);
+  BsmsGnn one(lagrangian_options(levels));
+  auto options = lagrangian_options(levels);
+  options.mp_per_level = 2;
+  BsmsGnn two(options);
+  const auto one_params = one.named_parameters();
+  auto two_params = two.named_parameters();
+  int64_t extra = 0;
+  {
+    torch::NoGradGuard no_grad;
+    for (const auto& param : two_params) {
+      if (const auto* same = one_params.find(param.key())) {
+        param.value().copy_(*same);
+      } else {
+        extra += param.value().numel();
+        const auto& key = param.key();
+        ASSERT_TRUE(key.rfind("down_0_1.", 0) == 0 || key.rfind("down_1_1.", 0) == 0 ||
+                    key.rfind("up_0_1.", 0) == 0 || key.rfind("up_1_1.", 0) == 0 ||
+                    key.rfind("bottom_1.", 0) == 0)
+            << key;
+        if (key.find(".node_mlp.third.") != std::string::npos) param.value().zero_();
+      }
+    }
+  }
+  for (const auto& param : one_params) EXPECT_TRUE(two_params.contains(param.key())) << param.key();
+  int64_t block = 0;
+  for (const auto& param : one.named_parameters()) {
+    if (param.key().rfind("bottom.", 0) == 0) block += param.value().numel();
+  }
+  EXPECT_EQ(extra, (2 * (levels - 1) + 1) * block);
+  torch::NoGradGuard no_grad;
+  auto a = one.forward(p.nodes, p.positions, p.graph);
+  auto b = two.forward(p.nodes, p.positions, p.graph);
+  EXPECT_LT(max_rel_diff(b, a), 1e-6);
+  // With the extra blocks live the output changes.
+  for (auto& param : two.named_parameters()) {
+    if (param.key() == "bottom_1.node_mlp.third.weight") param.value().normal_(0.0, 0.1);
+  }
+  EXPECT_GT(max_rel_diff(two.forward(p.nodes, p.positions, p.graph), a), 1e-4);
+  options.mp_per_level = 0;
+  EXPECT_THROW(BsmsGnn{options}, InputError);
 }
 
 TEST(Networks, MissingContactSetCountsAsEmpty) {

@@ -60,24 +60,34 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   RolloutRequest q;
   q.run = r.out;
   q.quiet = true;
-  const Json metrics = rollout(q);
-  for (const char* key : {"model", "rmse_1", "rmse_50", "rmse_all", "infer_ms_per_step",
-                          "solver_ms_per_frame", "speedup_vs_solver", "train_ms_per_step",
-                          "peak_rss_mb_train", "peak_rss_mb_infer", "num_nodes_mean", "threads"})
-    EXPECT_TRUE(metrics.contains(key)) << key;
-  EXPECT_EQ(metrics["model"], "bsms");
-  EXPECT_EQ(metrics["num_nodes_mean"].get<double>(), 49.0);
-  const double rmse_all = metrics["rmse_all"]["world_pos"].get<double>();
+  const RolloutMetrics metrics = rollout(q);
+  // What rollout returns is what its metrics file holds, read back by the strict reader.
+  const RolloutMetrics saved =
+      read_rollout_metrics((fs::path(r.out) / "rollout" / "metrics.json").string());
+  EXPECT_EQ(to_json(saved).dump(), to_json(metrics).dump());
+  EXPECT_EQ(metrics.model, "bsms");
+  EXPECT_FALSE(metrics.eulerian);
+  EXPECT_EQ(metrics.num_nodes_mean, 49.0);
+  EXPECT_GE(metrics.threads, 1);
+  EXPECT_GT(metrics.infer_ms_per_step, 0.0);
+  EXPECT_GT(metrics.peak_rss_mb_infer, 0.0);
+  ASSERT_TRUE(metrics.train_ms_per_step && metrics.peak_rss_mb_train && metrics.train_steps);
+  EXPECT_EQ(*metrics.train_steps, 600);
+  ASSERT_TRUE(metrics.rmse_1 && metrics.rmse_50 && metrics.rmse_all);
+  const double rmse_all = metrics.rmse_all->at("world_pos");
   EXPECT_TRUE(std::isfinite(rmse_all));
   // 28 predicted steps in which the plate travels ~0.3 m: far better than standing still.
   EXPECT_LT(rmse_all, 0.02);
-  EXPECT_LE(metrics["rmse_1"]["world_pos"].get<double>(), rmse_all + 1e-12);
+  EXPECT_LE(metrics.rmse_1->at("world_pos"), rmse_all + 1e-12);
   // The learned gravity and drag beat extrapolating the first velocity, and no cell turns over.
-  EXPECT_LT(rmse_all, 0.5 * metrics["rmse_all_constant_velocity"].get<double>());
-  EXPECT_EQ(metrics["inverted_cells_max"].get<double>(), 0.0);
-  EXPECT_EQ(metrics["inverted_cells_per_step"].size(), 28u);
-  EXPECT_EQ(metrics["seeding"], "minave");
-  EXPECT_NEAR(metrics["solver_ms_per_frame"].get<double>(), 1000.0 * 0.5 / 29.0, 1e-9);
+  ASSERT_TRUE(metrics.rmse_all_constant_velocity);
+  EXPECT_LT(rmse_all, 0.5 * *metrics.rmse_all_constant_velocity);
+  EXPECT_EQ(metrics.inverted_cells_max, 0.0);
+  EXPECT_EQ(metrics.inverted_cells_per_step.size(), 28u);
+  EXPECT_EQ(metrics.per_step("world_pos").size(), 28u);
+  EXPECT_EQ(metrics.seeding, "minave");
+  ASSERT_TRUE(metrics.solver_ms_per_frame && metrics.speedup_vs_solver);
+  EXPECT_NEAR(*metrics.solver_ms_per_frame, 1000.0 * 0.5 / 29.0, 1e-9);
   EXPECT_TRUE(fs::exists(fs::path(r.out) / "rollout" / "test.h5"));
   EXPECT_TRUE(fs::exists(fs::path(r.out) / "rollout" / "test_000001.xdmf"));
   const Dataset predicted((fs::path(r.out) / "rollout" / "test.h5").string());

@@ -59,7 +59,11 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "optimizer": {"warmup_steps": -1}})")
                 .find("optimizer.warmup_steps"),
             std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 0}})")
+                .find("model.mp_per_level"),
+            std::string::npos);
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 3}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 0.1,
     "strain": "off"}, "optimizer": {"warmup_steps": 50}})"),
             "");

@@ -78,6 +78,34 @@ case $case_name in
     "$bsms" preprocess --mesh "$source_dir/configs/geometry/plate_hole.geo" --out "$out" \
       >"$work/stdout" 2>&1 || fail "plate_hole.geo: exit $? ($(cat "$work/stdout"))"
     ;;
+  good_data)
+    # Every mesh topology of a dataset folder, one file each, named as training's graph cache
+    # (GraphStore) names them; a second run reuses them.
+    "$bsms" generate "$source_dir/configs/families/disks2d.json" --out "$work/data" \
+      --trajectories 3 --split 1:1:1 --set frames=3 --set 'sample.count=[2,2]' --threads 1 \
+      >/dev/null 2>&1 || fail "generate: exit $?"
+    cache=$work/data/multilevel
+    "$bsms" preprocess --data "$work/data" --levels 3 --threads 2 >"$work/stdout" 2>"$work/stderr" ||
+      fail "exit code $? ($(cat "$work/stderr"))"
+    [[ ! -s $work/stderr ]] || fail "stderr: $(cat "$work/stderr")"
+    topologies=$(sed -nE 's/^([0-9]+) topologies, 3 levels, seeding closecenter, .*/\1/p' \
+      "$work/stdout")
+    [[ -n $topologies && $topologies -ge 1 ]] || fail "no summary line: $(cat "$work/stdout")"
+    files=$(ls "$cache" | grep -cE '^closecenter-L3-[0-9a-f]{16}\.h5$')
+    [[ $files -eq $topologies && $(ls "$cache" | wc -l) -eq $files ]] ||
+      fail "$topologies topologies, files: $(ls "$cache")"
+    for file in "$cache"/*.h5; do
+      "$bsms" info "$file" >/dev/null 2>&1 || fail "bsms info $file: exit $?"
+    done
+    "$bsms" preprocess --data "$work/data" --levels 3 >"$work/stdout" 2>&1 || fail "rerun: exit $?"
+    [[ $(grep -cE ' cached$' "$work/stdout") -eq $topologies ]] ||
+      fail "rerun rebuilt entries: $(cat "$work/stdout")"
+    "$bsms" preprocess --data "$work/data" --out "$out_dir/cache" --levels 2 --seeding random \
+      --seed 5 >"$work/stdout" 2>&1 || fail "--out, random seeding: exit $? ($(cat "$work/stdout"))"
+    [[ $(ls "$out_dir/cache" | grep -cE '^random-s5-L2-[0-9a-f]{16}\.h5$') -eq $topologies ]] ||
+      fail "--out, random seeding: $(ls "$out_dir/cache")"
+    cat "$work/stdout"
+    ;;
   missing_mesh) expect_bad_input "not found" --mesh "$work/none.msh" --out "$out" ;;
   empty_file)
     : >"$work/empty.msh"

@@ -7,7 +7,9 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
+#include <stdexcept>
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
@@ -67,8 +69,9 @@ Json stats_json(const SplitStats& s) {
           {"min_frames", s.min_frames},     {"redrawn_by_solver_failure", s.redrawn}};
 }
 
-Json run_rollout(const HardCaseRequest& request, const RunInfo& run, const std::string& data,
-                 const std::string& seeding, const std::string& tag) {
+RolloutMetrics run_rollout(const HardCaseRequest& request, const RunInfo& run,
+                           const std::string& data, const std::string& seeding,
+                           const std::string& tag) {
   RolloutRequest r;
   r.run = run.dir;
   r.split = request.split;
@@ -83,22 +86,18 @@ Json run_rollout(const HardCaseRequest& request, const RunInfo& run, const std::
 }
 
 // RMSE-all of extrapolating the first velocity on the same trajectories (the no-model reference).
-double rmse_constant_velocity(const Json& metrics) {
-  const Json& v = metrics["rmse_all_constant_velocity"];
-  return v.is_number() ? v.get<double>() : std::nan("");
+double rmse_constant_velocity(const RolloutMetrics& metrics) {
+  return metrics.rmse_all_constant_velocity.value_or(std::nan(""));
 }
 
-double rmse(const Json& metrics, const char* key) {
-  const Json& v = metrics[key];
-  if (!v.is_object() || !v["world_pos"].is_number()) return std::nan("");
-  return v["world_pos"].get<double>();
-}
-
-std::vector<double> to_vector(const Json& array) {
-  std::vector<double> v;
-  if (array.is_array())
-    for (const auto& x : array) v.push_back(x.is_number() ? x.get<double>() : std::nan(""));
-  return v;
+double rmse(const RolloutMetrics& metrics, const char* key) {
+  const std::string k = key;
+  const std::optional<FieldRmse>& over = k == "rmse_1"    ? metrics.rmse_1
+                                         : k == "rmse_50" ? metrics.rmse_50
+                                                          : metrics.rmse_all;
+  if (k != "rmse_1" && k != "rmse_50" && k != "rmse_all")
+    throw std::logic_error("rmse: unknown key " + k);
+  return RolloutMetrics::rmse(over, "world_pos");
 }
 
 // One gnuplot line plot of per-step curves; `vlines` are (x, label) markers.
@@ -169,8 +168,8 @@ fs::path make_out(const HardCaseRequest& request) {
 }
 
 // RMSE of world position at predicted step `step` (1-based) of a metrics' per-step curve.
-double rmse_at(const Json& metrics, size_t step) {
-  const auto v = to_vector(metrics["rmse_per_step"]["world_pos"]);
+double rmse_at(const RolloutMetrics& metrics, size_t step) {
+  const auto& v = metrics.per_step("world_pos");
   return step >= 1 && step <= v.size() ? v[step - 1] : std::nan("");
 }
 

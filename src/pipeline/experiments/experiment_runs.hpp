@@ -11,6 +11,7 @@
 
 #include "core/config.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
+#include "pipeline/rollout_metrics.hpp"
 
 namespace bsms::experiments {
 
@@ -32,15 +33,15 @@ Json stats_json(const SplitStats& s);
 
 // Rolls `run` out on `data` with `seeding` (empty: the training seeding) into
 // OUT/rollouts/<run>-<tag>/ and returns its metrics.
-Json run_rollout(const HardCaseRequest& request, const RunInfo& run, const std::string& data,
-                 const std::string& seeding, const std::string& tag);
+RolloutMetrics run_rollout(const HardCaseRequest& request, const RunInfo& run,
+                           const std::string& data, const std::string& seeding,
+                           const std::string& tag);
 
 // Figures of a rollout's metrics (NaN when absent): RMSE-all of constant velocity, the world
 // position RMSE under `key` (rmse_1, rmse_50, rmse_all), and the RMSE at predicted step `step`.
-double rmse_constant_velocity(const Json& metrics);
-double rmse(const Json& metrics, const char* key);
-double rmse_at(const Json& metrics, size_t step);
-std::vector<double> to_vector(const Json& array);  // numbers of a JSON array (NaN otherwise)
+double rmse_constant_velocity(const RolloutMetrics& metrics);
+double rmse(const RolloutMetrics& metrics, const char* key);
+double rmse_at(const RolloutMetrics& metrics, size_t step);
 
 struct Curve {
   std::string label;

@@ -44,11 +44,11 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
                        " frames give " + std::to_string(steps) +
                        " predicted steps, fewer than 10x the training horizon of " + run.dir +
                        " (" + std::to_string(horizon) + " steps)");
-    const Json m = run_rollout(request, run, long_data, "", "long");
+    const RolloutMetrics m = run_rollout(request, run, long_data, "", "long");
     Json row = {{"run", run.dir},
                 {"model", run.model},
                 {"horizon_steps", horizon},
-                {"rollout", m},
+                {"rollout", to_json(m)},
                 {"rmse_at", Json::object()}};
     table << "| " << run.label << " | " << horizon;
     for (size_t k : {1, 2, 5, 10}) {
@@ -58,10 +58,10 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     }
     table << " | " << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
           << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
-          << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed) << " | "
-          << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>() << " |\n";
-    rmse_curves.push_back({run.label, to_vector(m["rmse_per_step"]["world_pos"])});
-    inverted_curves.push_back({run.label, to_vector(m["inverted_cells_per_step"])});
+          << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | " << m.diverged.size()
+          << " of " << m.num_trajectories << " |\n";
+    rmse_curves.push_back({run.label, m.per_step("world_pos")});
+    inverted_curves.push_back({run.label, m.inverted_cells_per_step});
     per_run.push_back(row);
   }
   result["runs"] = per_run;
@@ -98,22 +98,20 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
            "|---|---|---|---|---|---|---|---|\n";
     Json hard_runs = Json::array();
     for (const auto& run : runs) {
-      const Json m = run_rollout(request, run, hard_data, "", "hard");
-      const Json own = run_rollout(request, run, run.data, "", "own");
+      const RolloutMetrics m = run_rollout(request, run, hard_data, "", "hard");
+      const RolloutMetrics own = run_rollout(request, run, run.data, "", "own");
       hard_table << "| " << run.label << " | "
                  << format_number(rmse(m, "rmse_1"), 3, Notation::kScientific) << " | "
                  << format_number(rmse(m, "rmse_50"), 3, Notation::kScientific) << " | "
                  << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
                  << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
                  << format_number(rmse(own, "rmse_all"), 3, Notation::kScientific) << " | "
-                 << format_number(m["inverted_cells_max"].get<double>(), 4, Notation::kFixed)
-                 << " | " << m["diverged"].size() << " of " << m["num_trajectories"].get<int64_t>()
-                 << " |\n";
+                 << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | "
+                 << m.diverged.size() << " of " << m.num_trajectories << " |\n";
+      hard_curves.push_back({run.label + ", hard scenes", m.per_step("world_pos")});
       hard_curves.push_back(
-          {run.label + ", hard scenes", to_vector(m["rmse_per_step"]["world_pos"])});
-      hard_curves.push_back({run.label + ", own test split",
-                             to_vector(own["rmse_per_step"]["world_pos"]), "lines lw 2 dt 2"});
-      hard_runs.push_back({{"run", run.dir}, {"hard", m}, {"own", own}});
+          {run.label + ", own test split", own.per_step("world_pos"), "lines lw 2 dt 2"});
+      hard_runs.push_back({{"run", run.dir}, {"hard", to_json(m)}, {"own", to_json(own)}});
     }
     result["hard_runs"] = hard_runs;
     plot_curves(plots, "hard_rmse", "Rollout RMSE on the solver's hard scenes", "RMSE (m)", true,

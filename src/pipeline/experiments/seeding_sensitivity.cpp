@@ -8,6 +8,7 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -43,17 +44,17 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
       md << "- " << run.label << ": skipped (a single-level model has no seeding).\n";
       continue;
     }
-    Json rows = Json::object();
+    std::map<std::string, RolloutMetrics> rows;
     for (const std::string& seeding : seeding_names())
       rows[seeding] =
           run_rollout(request, run, data.empty() ? run.data : data, seeding, "seeding-" + seeding);
-    const Json& base = rows[run.seeding];
+    const RolloutMetrics& base = rows.at(run.seeding);
     md << "**" << run.label << "**, trained with " << run.seeding << ":\n\n"
        << "| Seeding @ test | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Ratio 1-step | Ratio "
           "50-step | Ratio rollout |\n|---|---|---|---|---|---|---|\n";
     Json ratios = Json::object();
     for (const std::string& seeding : seeding_names()) {
-      const Json& m = rows[seeding];
+      const RolloutMetrics& m = rows.at(seeding);
       const double r1 = rmse(m, "rmse_1") / rmse(base, "rmse_1");
       const double r50 = rmse(m, "rmse_50") / rmse(base, "rmse_50");
       const double rall = rmse(m, "rmse_all") / rmse(base, "rmse_all");
@@ -66,7 +67,7 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
          << format_number(r50, 2, Notation::kFixed) << " | "
          << format_number(rall, 2, Notation::kFixed) << " |\n";
       curves.push_back({run.label + ", " + seeding + (seeding == run.seeding ? " (training)" : ""),
-                        to_vector(m["rmse_per_step"]["world_pos"]),
+                        m.per_step("world_pos"),
                         seeding == run.seeding ? "lines lw 3" : "lines lw 2"});
     }
     double worst = 0;

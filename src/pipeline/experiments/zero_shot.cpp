@@ -34,6 +34,7 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
            "|---|---|---|---|---|---|---|---|---|\n";
   int64_t train_max = 0;
   Json per_run = Json::array();
+  std::vector<std::pair<RunInfo, std::pair<double, double>>> rmse_all;  // own, larger meshes
   for (const auto& run : runs) {
     const SplitStats train = split_stats(run.data, "train");
     train_max = std::max(train_max, train.max_nodes);
@@ -45,29 +46,28 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
                        "x the largest training mesh of " + run.dir + " (" +
                        std::to_string(train.max_nodes) +
                        "); expected >= " + format_number(min_ratio, 1, Notation::kFixed) + "x");
-    const Json own = run_rollout(request, run, run.data, "", "own");
-    const Json big = run_rollout(request, run, data, "", "large");
+    const RolloutMetrics own = run_rollout(request, run, run.data, "", "own");
+    const RolloutMetrics big = run_rollout(request, run, data, "", "large");
     per_run.push_back({{"run", run.dir},
                        {"model", run.model},
                        {"train", stats_json(train)},
                        {"size_ratio_min", ratio},
-                       {"in_distribution", own},
-                       {"zero_shot", big}});
+                       {"in_distribution", to_json(own)},
+                       {"zero_shot", to_json(big)}});
+    rmse_all.push_back({run, {rmse(own, "rmse_all"), rmse(big, "rmse_all")}});
     for (const auto* m : {&own, &big}) {
       const bool is_big = m == &big;
       table << "| " << run.label << " | "
             << (is_big ? "zero-shot, larger meshes" : "own test split (training sizes)") << " | "
-            << format_number((*m)["num_nodes_mean"].get<double>(), 0, Notation::kFixed) << " | "
+            << format_number(m->num_nodes_mean, 0, Notation::kFixed) << " | "
             << format_number(rmse(*m, "rmse_1"), 3, Notation::kScientific) << " | "
             << format_number(rmse(*m, "rmse_50"), 3, Notation::kScientific) << " | "
             << format_number(rmse(*m, "rmse_all"), 3, Notation::kScientific) << " | "
             << format_number(rmse_constant_velocity(*m), 3, Notation::kScientific) << " | "
-            << format_number((*m)["infer_ms_per_step"].get<double>(), 1, Notation::kFixed) << " | "
-            << format_number((*m)["inverted_cells_max"].get<double>(), 4, Notation::kFixed)
-            << " |\n";
+            << format_number(m->infer_ms_per_step, 1, Notation::kFixed) << " | "
+            << format_number(m->inverted_cells_max, 4, Notation::kFixed) << " |\n";
       curves.push_back({run.label + (is_big ? ", larger meshes (zero-shot)" : ", own test split"),
-                        to_vector((*m)["rmse_per_step"]["world_pos"]),
-                        is_big ? "lines lw 2" : "lines lw 2 dt 2"});
+                        m->per_step("world_pos"), is_big ? "lines lw 2" : "lines lw 2 dt 2"});
     }
   }
   result["runs"] = per_run;
@@ -95,13 +95,12 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
      << table.str() << "\n![zero-shot RMSE](plots/zero_shot_rmse.png)\n\n"
      << "![zero-shot frame](plots/zero_shot_frame.png)\n\n";
   // Reading of the figures: per run, RMSE-all on the larger meshes against the own test split.
-  for (const auto& r : per_run) {
-    const double a = rmse(r["in_distribution"], "rmse_all");
-    const double b = rmse(r["zero_shot"], "rmse_all");
-    md << "- " << r["run"].get<std::string>() << " (" << r["model"].get<std::string>()
-       << "): RMSE-all " << format_number(b, 3, Notation::kScientific)
-       << " m on the larger meshes against " << format_number(a, 3, Notation::kScientific)
-       << " m on its own test split (" << format_number(b / a, 2, Notation::kFixed) << "×).\n";
+  for (const auto& [run, own_big] : rmse_all) {
+    const auto [a, b] = own_big;
+    md << "- " << run.dir << " (" << run.model << "): RMSE-all "
+       << format_number(b, 3, Notation::kScientific) << " m on the larger meshes against "
+       << format_number(a, 3, Notation::kScientific) << " m on its own test split ("
+       << format_number(b / a, 2, Notation::kFixed) << "×).\n";
   }
   write_text_atomic((out / "zero_shot.md").string(), md.str());
   write_json_atomic((out / "metrics.json").string(), result);

@@ -1,0 +1,195 @@
+#include "pipeline/rollout_metrics.hpp"
+
+#include <cmath>
+#include <filesystem>
+
+namespace bsms {
+
+namespace {
+
+Json nullable_json(const std::optional<double>& value) {
+  return value ? Json(*value) : Json(nullptr);
+}
+
+// A measure (an error, a loss): a number, or null for a non-finite one (NaN).
+double measure_from_json(const Json& value, const JsonContext& where) {
+  if (value.is_null()) return std::nan("");
+  require(value.is_number(), where, "a number or null");
+  return value.get<double>();
+}
+
+double read_measure(JsonObjectReader& r, const std::string& key) {
+  return measure_from_json(r.raw(key), r.context(key));
+}
+
+// A figure that may be absent: a number, or null for none.
+std::optional<double> read_nullable(JsonObjectReader& r, const std::string& key) {
+  const Json& value = r.raw(key);
+  if (value.is_null()) return std::nullopt;
+  require(value.is_number(), r.context(key), "a number or null");
+  return value.get<double>();
+}
+
+Json to_json(const std::optional<FieldRmse>& rmse) {
+  if (!rmse) return nullptr;
+  Json j = Json::object();
+  for (const auto& [field, value] : rmse->fields) j[field] = value;
+  j["total"] = rmse->total;
+  return j;
+}
+
+// An object of field RMSEs and "total", or null when no step was predicted.
+std::optional<FieldRmse> field_rmse_from_json(JsonObjectReader& parent, const std::string& key) {
+  const Json& value = parent.raw(key);
+  if (value.is_null()) return std::nullopt;
+  require(value.is_object(), parent.context(key), "an object of field RMSEs and total, or null");
+  JsonObjectReader r(value, parent.context(key));
+  FieldRmse rmse;
+  rmse.total = read_measure(r, "total");
+  for (const auto& item : value.items())
+    if (item.key() != "total") rmse.fields[item.key()] = read_measure(r, item.key());
+  require(!rmse.fields.empty(), parent.context(key), "an object of field RMSEs and total, or null");
+  return rmse;
+}
+
+std::vector<double> measures_from_json(const Json& values, const JsonContext& where) {
+  require(values.is_array(), where, "an array of numbers");
+  std::vector<double> out;
+  out.reserve(values.size());
+  for (const Json& v : values) out.push_back(measure_from_json(v, where));
+  return out;
+}
+
+// Per field, one value per predicted step.
+std::map<std::string, std::vector<double>> curves_from_json(JsonObjectReader& parent,
+                                                            const std::string& key) {
+  const Json& value = parent.raw(key);
+  require(value.is_object(), parent.context(key), "an object of per-step RMSE arrays");
+  JsonObjectReader r(value, parent.context(key));
+  std::map<std::string, std::vector<double>> curves;
+  for (const auto& item : value.items())
+    curves[item.key()] = measures_from_json(r.raw(item.key()), r.context(item.key()));
+  return curves;
+}
+
+std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
+  const Json& list = parent.raw("diverged");
+  require(list.is_array(), parent.context("diverged"), "an array of {trajectory, frame}");
+  std::vector<DivergedTrajectory> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const JsonContext where = parent.context("diverged." + std::to_string(i));
+    require(list[i].is_object(), where, "an object {trajectory, frame}");
+    JsonObjectReader r(list[i], where);
+    DivergedTrajectory d;
+    d.trajectory = r.get<int64_t>("trajectory");
+    d.frame = r.get<int64_t>("frame");
+    r.finish();
+    out.push_back(d);
+  }
+  return out;
+}
+
+}  // namespace
+
+double FieldRmse::at(const std::string& field) const {
+  const auto it = fields.find(field);
+  return it == fields.end() ? std::nan("") : it->second;
+}
+
+double RolloutMetrics::rmse(const std::optional<FieldRmse>& over, const std::string& field) {
+  return over ? over->at(field) : std::nan("");
+}
+
+const std::vector<double>& RolloutMetrics::per_step(const std::string& field) const {
+  static const std::vector<double> none;
+  const auto it = rmse_per_step.find(field);
+  return it == rmse_per_step.end() ? none : it->second;
+}
+
+Json to_json(const RolloutMetrics& m) {
+  Json j;
+  j["model"] = m.model;
+  if (m.eulerian) j["kind"] = "eulerian";
+  j["split"] = m.split;
+  j["data"] = m.data;
+  j["num_trajectories"] = m.num_trajectories;
+  j["rmse_1"] = to_json(m.rmse_1);
+  j["rmse_50"] = to_json(m.rmse_50);
+  j["rmse_all"] = to_json(m.rmse_all);
+  j["rmse_per_step"] = m.rmse_per_step;
+  if (m.eulerian) {
+    j["rmse_1_persistence"] = to_json(m.rmse_1_persistence);
+    j["rmse_all_persistence"] = to_json(m.rmse_all_persistence);
+  } else {
+    j["rmse_all_constant_velocity"] = nullable_json(m.rmse_all_constant_velocity);
+    j["inverted_cells_per_step"] = m.inverted_cells_per_step;
+    j["inverted_cells_max"] = m.inverted_cells_max;
+  }
+  j["seeding"] = m.seeding;
+  j["infer_ms_per_step"] = m.infer_ms_per_step;
+  j["solver_ms_per_frame"] = nullable_json(m.solver_ms_per_frame);
+  j["speedup_vs_solver"] = nullable_json(m.speedup_vs_solver);
+  j["peak_rss_mb_infer"] = m.peak_rss_mb_infer;
+  j["num_nodes_mean"] = m.num_nodes_mean;
+  j["threads"] = m.threads;
+  Json diverged = Json::array();
+  for (const auto& d : m.diverged)
+    diverged.push_back({{"trajectory", d.trajectory}, {"frame", d.frame}});
+  j["diverged"] = diverged;
+  j["levels"] = m.levels;
+  j["train_ms_per_step"] = nullable_json(m.train_ms_per_step);
+  j["peak_rss_mb_train"] = nullable_json(m.peak_rss_mb_train);
+  if (m.train_steps) j["train_steps"] = *m.train_steps;
+  return j;
+}
+
+RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& file) {
+  RolloutMetrics m;
+  require(json.is_object(), {file, ""}, "a JSON object");
+  JsonObjectReader r(json, {file, ""});
+  m.model = r.get<std::string>("model");
+  require(m.model == "bsms" || m.model == "mgn", r.context("model"), "\"bsms\" or \"mgn\"");
+  if (r.has("kind")) {
+    require(r.get<std::string>("kind") == "eulerian", r.context("kind"),
+            "\"eulerian\" (Lagrangian metrics have no kind)");
+    m.eulerian = true;
+  }
+  m.split = r.get<std::string>("split");
+  m.data = r.get<std::string>("data");
+  m.num_trajectories = r.get<int64_t>("num_trajectories");
+  m.rmse_1 = field_rmse_from_json(r, "rmse_1");
+  m.rmse_50 = field_rmse_from_json(r, "rmse_50");
+  m.rmse_all = field_rmse_from_json(r, "rmse_all");
+  m.rmse_per_step = curves_from_json(r, "rmse_per_step");
+  if (m.eulerian) {
+    m.rmse_1_persistence = field_rmse_from_json(r, "rmse_1_persistence");
+    m.rmse_all_persistence = field_rmse_from_json(r, "rmse_all_persistence");
+  } else {
+    m.rmse_all_constant_velocity = read_nullable(r, "rmse_all_constant_velocity");
+    m.inverted_cells_per_step =
+        measures_from_json(r.raw("inverted_cells_per_step"), r.context("inverted_cells_per_step"));
+    m.inverted_cells_max = r.get<double>("inverted_cells_max");
+  }
+  m.seeding = r.get<std::string>("seeding");
+  m.infer_ms_per_step = r.get<double>("infer_ms_per_step");
+  m.solver_ms_per_frame = read_nullable(r, "solver_ms_per_frame");
+  m.speedup_vs_solver = read_nullable(r, "speedup_vs_solver");
+  m.peak_rss_mb_infer = r.get<double>("peak_rss_mb_infer");
+  m.num_nodes_mean = r.get<double>("num_nodes_mean");
+  m.threads = r.get<int>("threads");
+  m.diverged = diverged_from_json(r);
+  m.levels = r.get<int>("levels");
+  m.train_ms_per_step = read_nullable(r, "train_ms_per_step");
+  m.peak_rss_mb_train = read_nullable(r, "peak_rss_mb_train");
+  if (r.has("train_steps")) m.train_steps = r.get<int64_t>("train_steps");
+  r.finish();
+  return m;
+}
+
+RolloutMetrics read_rollout_metrics(const std::string& file) {
+  if (!std::filesystem::exists(file))
+    throw InputError(file + ": not found (run bsms rollout first)");
+  return rollout_metrics_from_json(load_json_file(file), file);
+}
+
+}  // namespace bsms

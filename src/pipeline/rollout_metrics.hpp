@@ -1,0 +1,77 @@
+// RUN/rollout/metrics.json (DESIGN.md "Runs") as a type with one writer and one strict reader:
+// what bsms rollout writes is what bsms report and the experiments read. JSON has no NaN, so a
+// non-finite measure is written as null and read back as NaN; an absent figure (std::nullopt) is
+// written as null. A missing or malformed key is an InputError naming the file and the key.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+
+namespace bsms {
+
+// RMSE of each predicted field over some steps and "total", the RMS of the fields' RMSEs (fields
+// have different units: compare totals only between models on one dataset).
+struct FieldRmse {
+  std::map<std::string, double> fields;  // "world_pos", "velocity" | "velocity", "density", ...
+  double total = 0.0;
+  double at(const std::string& field) const;  // NaN when the field is absent
+};
+
+struct DivergedTrajectory {
+  int64_t trajectory = 0;
+  int64_t frame = 0;  // the first frame with a non-finite prediction
+};
+
+struct RolloutMetrics {
+  std::string model;      // "bsms" | "mgn"
+  bool eulerian = false;  // "kind": "eulerian"; Lagrangian files have no "kind"
+  std::string split;
+  std::string data;     // the dataset rolled out
+  std::string seeding;  // of the multilevel graphs
+  int64_t num_trajectories = 0;
+  int levels = 1;
+  int threads = 0;
+  // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the
+  // RMSE of each predicted step per field (Lagrangian: world_pos only).
+  std::optional<FieldRmse> rmse_1, rmse_50, rmse_all;
+  std::map<std::string, std::vector<double>> rmse_per_step;
+  // Lagrangian: RMSE-all of extrapolating the first velocity (the reference a model must beat),
+  // and the fraction of predicted cells turned inside out against the first frame.
+  std::optional<double> rmse_all_constant_velocity;
+  std::vector<double> inverted_cells_per_step;
+  double inverted_cells_max = 0.0;
+  // Eulerian: the first frame held on the predicted nodes (no model).
+  std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
+  std::vector<DivergedTrajectory> diverged;
+  double infer_ms_per_step = 0.0;  // median
+  // From the dataset's solver timings; none when it has none (public data).
+  std::optional<double> solver_ms_per_frame, speedup_vs_solver;
+  double peak_rss_mb_infer = 0.0;
+  double num_nodes_mean = 0.0;
+  // From RUN/train_stats.json; none when no training session of the run has finished.
+  std::optional<double> train_ms_per_step, peak_rss_mb_train;
+  std::optional<int64_t> train_steps;
+
+  // The field the tables show: world positions (m) for Lagrangian runs, velocity for Eulerian.
+  std::string primary_field() const { return eulerian ? "velocity" : "world_pos"; }
+  // RMSE of `field` in one of rmse_1, rmse_50, rmse_all; NaN when there is none.
+  static double rmse(const std::optional<FieldRmse>& over, const std::string& field);
+  // The per-step curve of `field` (empty when absent).
+  const std::vector<double>& per_step(const std::string& field) const;
+};
+
+Json to_json(const RolloutMetrics& metrics);
+// nlohmann's conversion hook: `Json j = metrics;`, and maps or vectors of metrics.
+inline void to_json(Json& json, const RolloutMetrics& metrics) {
+  json = to_json(metrics);
+}
+RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& file);
+// Reads a metrics file; InputError naming it when it is missing or malformed.
+RolloutMetrics read_rollout_metrics(const std::string& file);
+
+}  // namespace bsms

@@ -1,0 +1,44 @@
+#include "pipeline/rollout_outputs.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "core/config.hpp"
+#include "data/dataset/dataset.hpp"
+#include "data/dataset/xdmf.hpp"
+#include "pipeline/trainer.hpp"
+
+namespace bsms::rollout_outputs {
+namespace fs = std::filesystem;
+
+fs::path out_dir(const RolloutRequest& request) {
+  return request.out.empty() ? fs::path(request.run) / "rollout" : fs::path(request.out);
+}
+
+void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,
+                      const std::string& split) {
+  const Dataset written(out_h5);
+  for (int64_t t = 0; t < written.num_trajectories(); ++t) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%s_%06lld.xdmf", split.c_str(), static_cast<long long>(t));
+    write_trajectory_xdmf(written, t, (out_dir / name).string());
+  }
+}
+
+void add_train_stats(RolloutMetrics& metrics, const std::string& run) {
+  const std::string stats_file = run_stats_path(run);
+  if (fs::exists(stats_file)) {
+    const Json stats = load_json_file(stats_file);
+    metrics.train_ms_per_step = stats.value("train_ms_per_step", 0.0);
+    metrics.peak_rss_mb_train = stats.value("peak_rss_mb_train", 0.0);
+    metrics.train_steps = stats.value("steps", int64_t{0});
+  }
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace bsms::rollout_outputs

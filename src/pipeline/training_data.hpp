@@ -1,0 +1,67 @@
+// What bsms train takes from its data (trainer.cpp): the model the training data decides
+// (kind, dimensions, node types, position scale, contact, walls, momentum, levels), the samples
+// of a step (deterministic in seed, step and slot, so that a resumed or data-parallel run draws
+// what one uninterrupted rank would) and their batch and target.
+#pragma once
+
+#include <ATen/core/Generator.h>
+#include <torch/types.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+#include "data/dataset/dataset.hpp"
+#include "pipeline/eulerian.hpp"
+#include "pipeline/graph_store.hpp"
+#include "pipeline/lagrangian.hpp"
+#include "pipeline/simulator.hpp"
+#include "pipeline/train_config.hpp"
+
+namespace bsms {
+
+// One training sample: frame t of a trajectory (predicting t+1 from t-1 and t).
+struct SampleRef {
+  int64_t trajectory;
+  int64_t frame;  // t: uses t-1, t, t+1
+};
+
+// Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
+// Data-parallel rank r of N draws slots r*b .. r*b+b-1 of the N*b of a step, so that N ranks of
+// batch size b train on the samples (and noise: noise_seed) of one rank of batch size N*b.
+SampleRef draw_sample(const Dataset& data, uint64_t seed, int64_t step, int slot);
+
+// The training noise of slot `slot` of step `step`: one generator per sample.
+uint64_t noise_seed(uint64_t seed, int64_t step, int slot);
+
+// What the data decides: the kind of model, dimensions, node types, position scale, contact,
+// walls, momentum conservation, levels.
+struct ResolvedModel {
+  bool eulerian = false;  // fields on a fixed mesh (velocity, no world_pos)
+  LagrangianSpec spec;
+  EulerianSpec eulerian_spec;
+  int levels = 1;
+  std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
+  double momentum_residual = -1;  // measured on the training data when on
+
+  Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
+  ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
+};
+// InputError when the training data cannot train a model (no world_pos or velocity field, mixed
+// mesh dimensions, trajectories shorter than 3 frames).
+ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data);
+
+// One training or validation batch and its target.
+struct TrainBatch {
+  Batch batch;
+  torch::Tensor target;
+};
+
+// The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
+// of refs[k] is drawn from generators[k] (no noise without generators).
+TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
+                            GraphStore& store, const std::vector<SampleRef>& refs,
+                            std::vector<at::Generator>* generators);
+
+}  // namespace bsms
