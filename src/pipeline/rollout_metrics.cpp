@@ -3,32 +3,11 @@
 #include <cmath>
 #include <filesystem>
 
+#include "pipeline/json_measures.hpp"
+
 namespace bsms {
 
 namespace {
-
-Json nullable_json(const std::optional<double>& value) {
-  return value ? Json(*value) : Json(nullptr);
-}
-
-// A measure (an error, a loss): a number, or null for a non-finite one (NaN).
-double measure_from_json(const Json& value, const JsonContext& where) {
-  if (value.is_null()) return std::nan("");
-  require(value.is_number(), where, "a number or null");
-  return value.get<double>();
-}
-
-double read_measure(JsonObjectReader& r, const std::string& key) {
-  return measure_from_json(r.raw(key), r.context(key));
-}
-
-// A figure that may be absent: a number, or null for none.
-std::optional<double> read_nullable(JsonObjectReader& r, const std::string& key) {
-  const Json& value = r.raw(key);
-  if (value.is_null()) return std::nullopt;
-  require(value.is_number(), r.context(key), "a number or null");
-  return value.get<double>();
-}
 
 Json to_json(const std::optional<FieldRmse>& rmse) {
   if (!rmse) return nullptr;

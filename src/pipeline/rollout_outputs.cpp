@@ -6,6 +6,7 @@
 #include "core/config.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/xdmf.hpp"
+#include "pipeline/train_stats.hpp"
 #include "pipeline/trainer.hpp"
 
 namespace bsms::rollout_outputs {
@@ -27,12 +28,11 @@ void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,
 
 void add_train_stats(RolloutMetrics& metrics, const std::string& run) {
   const std::string stats_file = run_stats_path(run);
-  if (fs::exists(stats_file)) {
-    const Json stats = load_json_file(stats_file);
-    metrics.train_ms_per_step = stats.value("train_ms_per_step", 0.0);
-    metrics.peak_rss_mb_train = stats.value("peak_rss_mb_train", 0.0);
-    metrics.train_steps = stats.value("steps", int64_t{0});
-  }
+  if (!fs::exists(stats_file)) return;
+  const TrainStats stats = read_train_stats(stats_file);
+  metrics.train_ms_per_step = stats.train_ms_per_step;
+  metrics.peak_rss_mb_train = stats.peak_rss_mb_train;
+  metrics.train_steps = stats.steps;
 }
 
 double median(std::vector<double> v) {

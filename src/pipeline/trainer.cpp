@@ -26,6 +26,7 @@
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
+#include "pipeline/train_stats.hpp"
 #include "pipeline/training_data.hpp"
 
 namespace bsms {
@@ -195,12 +196,15 @@ TrainResult train(const TrainRequest& request) {
                          "stopped before its first checkpoint is started again without --resume)");
       if (request.resume) {
         const Json saved = load_json_file(run_config_path(run));
-        Json a = saved.value("config", Json::object()), b = run_json["config"];
+        // The saved config read back and written again: keys added since it was written
+        // (e.g. model.mp_per_level) take their defaults instead of counting as a change.
+        const RunFolder before_run = RunFolder::open(run);
+        Json a = to_json(before_run.config), b = run_json["config"];
         for (auto* j : {&a, &b}) {
           j->erase("steps");
           j->erase("time_budget_s");
         }
-        if (a != b || saved.value("levels", -1) != resolved.levels)
+        if (a != b || before_run.levels != resolved.levels)
           throw InputError(run_config_path(run) +
                            ": the run was trained with another configuration; "
                            "only steps and time_budget_s may change on --resume");
@@ -418,33 +422,31 @@ TrainResult train(const TrainRequest& request) {
   log.close();
 
   const double session_steps = static_cast<double>(fitted.step_ms.size());
-  Json stats = {
-      {"steps", step},
-      {"train_ms_per_step", result.train_ms_per_step},
-      {"peak_rss_mb_train", peak_rss_mb()},
-      {"threads", threads},
-      {"world_size", world},
-      {"samples_per_step", world * per_rank},
-      {"wall_s", fitted.wall_s},
-      {"final_loss", last_loss},
-      {"final_valid_loss", std::isfinite(last_valid.loss) ? Json(last_valid.loss) : Json(nullptr)},
-      {"final_valid_baseline",
-       std::isfinite(last_valid.baseline) ? Json(last_valid.baseline) : Json(nullptr)},
-      {"num_parameters", simulator->num_parameters()},
-      {"valid_split", has_valid ? "valid" : "train"}};
+  TrainStats stats;
+  stats.steps = step;
+  stats.train_ms_per_step = result.train_ms_per_step;
+  stats.peak_rss_mb_train = peak_rss_mb();
+  stats.threads = threads;
+  stats.world_size = world;
+  stats.samples_per_step = world * per_rank;
+  stats.wall_s = fitted.wall_s;
+  stats.final_loss = last_loss;
+  stats.final_valid_loss = last_valid.loss;
+  stats.final_valid_baseline = last_valid.baseline;
+  stats.num_parameters = simulator->num_parameters();
+  stats.valid_split = has_valid ? "valid" : "train";
   if (comm && session_steps > 0) {
-    // Rank 0's time in the gradient all-reduce (waiting for slower ranks included).
-    stats["allreduce_ms_per_step"] = (comm->collective_ms - collective_ms_before) / session_steps;
-    stats["allreduce_calls_per_step"] =
+    stats.allreduce_ms_per_step = (comm->collective_ms - collective_ms_before) / session_steps;
+    stats.allreduce_calls_per_step =
         static_cast<double>(comm->collective_calls - collective_calls_before) / session_steps;
   }
   if (request.resume && fs::exists(run_stats_path(run))) {
     // Keep the median of the first session when this one ran no step.
-    const Json old = load_json_file(run_stats_path(run));
-    if (fitted.step_ms.empty()) stats["train_ms_per_step"] = old.value("train_ms_per_step", 0.0);
-    stats["peak_rss_mb_train"] = std::max(old.value("peak_rss_mb_train", 0.0), peak_rss_mb());
+    const TrainStats before = read_train_stats(run_stats_path(run));
+    if (fitted.step_ms.empty()) stats.train_ms_per_step = before.train_ms_per_step;
+    stats.peak_rss_mb_train = std::max(before.peak_rss_mb_train, stats.peak_rss_mb_train);
   }
-  write_json_atomic(run_stats_path(run), stats);
+  write_json_atomic(run_stats_path(run), to_json(stats));
   if (!request.quiet)
     std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
               << last_valid.loss << " (zero prediction " << last_valid.baseline << "), "

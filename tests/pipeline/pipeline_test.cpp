@@ -11,7 +11,9 @@
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
 #include "pipeline/rollout.hpp"
+#include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
+#include "pipeline/train_stats.hpp"
 #include "pipeline/trainer.hpp"
 #include "plate_data.hpp"
 
@@ -120,8 +122,8 @@ TEST(KnownAnswer, BsmsLearnsSpringPlateAccelerations) {
   r.threads = 2;
   r.quiet = true;
   const TrainResult result = train(r);
-  const Json stats = load_json_file(run_stats_path(r.out));
-  const double baseline = stats["final_valid_baseline"].get<double>();
+  const TrainStats stats = read_train_stats(run_stats_path(r.out));
+  const double baseline = stats.final_valid_baseline;
   EXPECT_GT(baseline, 0.5);  // normalised targets: predicting zero scores about dim = 2
   EXPECT_LT(result.final_valid_loss, 0.05 * baseline)
       << "validation loss " << result.final_valid_loss << ", zero prediction " << baseline;
@@ -153,6 +155,13 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   EXPECT_EQ(train(split).steps, 40);
   split.overrides = {"model.latent=32"};
   EXPECT_THROW(train(split), InputError);  // another model on resume
+  // A run written before a key existed (here model.mp_per_level) resumes: the missing key takes
+  // its default, it is not a change of configuration.
+  split.overrides.clear();
+  Json saved = load_json_file(run_config_path(split.out));
+  ASSERT_EQ(saved["config"]["model"].erase("mp_per_level"), 1u);
+  write_json_atomic(run_config_path(split.out), saved);
+  EXPECT_EQ(train(split).steps, 40);
 
   // Same parameters bit for bit.
   const Json cfg = load_json_file(run_config_path(straight.out));
@@ -190,7 +199,7 @@ TEST(ValidSplit, MissingIsSaidDamagedIsAnError) {
   train(r);
   const std::string err = ::testing::internal::GetCapturedStderr();
   EXPECT_NE(err.find("no valid split"), std::string::npos) << err;
-  EXPECT_EQ(load_json_file(run_stats_path(r.out))["valid_split"], "train");
+  EXPECT_EQ(read_train_stats(run_stats_path(r.out)).valid_split, "train");
   std::ofstream(dir / "data" / "valid.h5") << "damaged";
   r.out = (dir / "run2").string();
   try {

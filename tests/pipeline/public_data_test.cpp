@@ -13,6 +13,7 @@
 #include "data/dataset/dataset.hpp"
 #include "pipeline/eulerian.hpp"
 #include "pipeline/rollout.hpp"
+#include "pipeline/train_stats.hpp"
 #include "pipeline/trainer.hpp"
 
 namespace bsms {
@@ -158,9 +159,8 @@ TEST(PublicData, FlagHasTwoDimensionalMeshInThreeDimensions) {
 TEST(PublicData, EulerianModelLearnsTheFixtureFlow) {
   const Outcome o = train_and_roll_out({"cylinder_flow", "cylinder-bsms"}, "cyl_learn", 400, 0.002);
   const Json& m = o.metrics;
-  const Json stats = load_json_file(run_stats_path(o.run));
-  EXPECT_LT(stats["final_valid_loss"].get<double>(),
-            0.5 * stats["final_valid_baseline"].get<double>());
+  const TrainStats stats = read_train_stats(run_stats_path(o.run));
+  EXPECT_LT(stats.final_valid_loss, 0.5 * stats.final_valid_baseline);
   EXPECT_LT(m["rmse_1"]["velocity"].get<double>(),
             0.75 * m["rmse_1_persistence"]["velocity"].get<double>());
 }

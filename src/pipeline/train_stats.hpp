@@ -1,0 +1,38 @@
+// RUN/train_stats.json (DESIGN.md "Runs") as a type with one writer (bsms train, at the end of
+// each session) and one strict reader (bsms rollout copies its figures into the metrics; a resumed
+// session keeps the first session's median and peak). Non-finite losses are written as null and
+// read back as NaN; a missing or malformed key is an InputError naming the file and the key.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "core/config.hpp"
+
+namespace bsms {
+
+struct TrainStats {
+  int64_t steps = 0;                  // optimizer steps of the run so far (all sessions)
+  double train_ms_per_step = 0.0;     // median over the session's steps
+  double peak_rss_mb_train = 0.0;     // the highest of every session
+  int threads = 0;                    // LibTorch threads per rank
+  int world_size = 1;                 // data-parallel ranks
+  int64_t samples_per_step = 0;       // world_size × batch size
+  double wall_s = 0.0;                // the session's training time
+  double final_loss = 0.0;            // last training loss (NaN: none)
+  double final_valid_loss = 0.0;      // last validation loss (NaN: none)
+  double final_valid_baseline = 0.0;  // its zero-prediction loss (NaN: none)
+  int64_t num_parameters = 0;
+  std::string valid_split = "valid";  // "valid", or "train" when the dataset has none
+  // Data-parallel sessions: rank 0's time in the gradient all-reduce per step (waiting for slower
+  // ranks included) and the all-reduce calls per step; none for a single process.
+  std::optional<double> allreduce_ms_per_step, allreduce_calls_per_step;
+};
+
+Json to_json(const TrainStats& stats);
+TrainStats train_stats_from_json(const Json& json, const std::string& file);
+// Reads a stats file; InputError naming it when it is missing or malformed.
+TrainStats read_train_stats(const std::string& file);
+
+}  // namespace bsms
