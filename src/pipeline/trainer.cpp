@@ -450,7 +450,7 @@ TrainResult train(const TrainRequest& request) {
   if (!request.quiet)
     std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
               << last_valid.loss << " (zero prediction " << last_valid.baseline << "), "
-              << result.train_ms_per_step << " ms/step (median), peak RSS " << peak_rss_mb()
+              << stats.train_ms_per_step << " ms/step (median), peak RSS " << peak_rss_mb()
               << " MB\n";
   return result;
 }
