@@ -15,6 +15,7 @@
 #include "pipeline/plotting.hpp"
 #include "pipeline/rollout_metrics.hpp"
 #include "pipeline/run_files.hpp"
+#include "pipeline/train_log.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
@@ -24,6 +25,7 @@ namespace {
 struct RunData {
   std::string dir, label;
   RolloutMetrics metrics;
+  std::vector<TrainLogRow> log;  // RUN/train_log.csv
 };
 
 // A figure that may be absent, as a number or NaN (shown as "–").
@@ -63,6 +65,7 @@ std::string write_report(const ReportRequest& request) {
     r.dir = dir;
     r.metrics = read_rollout_metrics(metrics.string());
     r.label = fs::path(dir).filename().string() + " (" + r.metrics.model + ")";
+    r.log = read_train_log((fs::path(dir) / "train_log.csv").string());
     runs.push_back(std::move(r));
   }
   const fs::path out = request.out;
@@ -80,22 +83,14 @@ std::string write_report(const ReportRequest& request) {
       if (std::isfinite(steps[s])) curve << s + 1 << ' ' << steps[s] << '\n';
     std::ofstream loss(plots / ("loss_" + std::to_string(r) + ".dat"));
     std::ofstream valid_out(plots / ("valid_" + std::to_string(r) + ".dat"));
-    std::ifstream log(fs::path(runs[r].dir) / "train_log.csv");
-    std::string line;
-    std::getline(log, line);
-    // Logs since issue 10 carry valid_baseline (the zero-prediction loss) before lr.
-    const bool has_baseline = line.find("valid_baseline") != std::string::npos;
-    while (std::getline(log, line)) {
-      std::stringstream cells(line);
-      std::string step, wall, value, valid, baseline;
-      std::getline(cells, step, ',');
-      std::getline(cells, wall, ',');
-      std::getline(cells, value, ',');
-      std::getline(cells, valid, ',');
-      if (has_baseline) std::getline(cells, baseline, ',');
-      loss << wall << ' ' << value << '\n';
-      if (!valid.empty())
-        valid_out << wall << ' ' << valid << ' ' << (baseline.empty() ? "NaN" : baseline) << '\n';
+    for (const TrainLogRow& row : runs[r].log) {
+      loss << row.wall_s << ' ' << row.loss << '\n';
+      if (!row.has_valid()) continue;
+      valid_out << row.wall_s << ' ' << row.valid_loss << ' ';
+      if (std::isfinite(row.valid_baseline))
+        valid_out << row.valid_baseline << '\n';
+      else
+        valid_out << "NaN\n";  // a log written before the baseline column
     }
   }
   double solver_ms = -1;

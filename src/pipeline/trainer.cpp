@@ -26,6 +26,7 @@
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
+#include "pipeline/train_log.hpp"
 #include "pipeline/train_stats.hpp"
 #include "pipeline/training_data.hpp"
 
@@ -47,16 +48,6 @@ std::string run_stats_path(const std::string& run) {
 
 namespace {
 
-// A log row's step, or -1 unless `line` is a whole row (a step and 5 more fields).
-int64_t log_row_step(const std::string& line) {
-  if (std::count(line.begin(), line.end(), ',') != 5) return -1;
-  const std::string step = line.substr(0, line.find(','));
-  if (step.empty() || step.size() > 18 ||
-      !std::all_of(step.begin(), step.end(), [](char c) { return c >= '0' && c <= '9'; }))
-    return -1;
-  return std::stoll(step);
-}
-
 // Drops log rows after `step` (resume) and returns the file for appending. A session killed
 // mid-write may have left rows past its checkpoint and a torn last line (no newline): only whole,
 // newline-terminated rows up to the checkpoint's step are kept, so the log holds each step once.
@@ -68,16 +59,17 @@ std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fr
     int64_t last = 0;
     while (std::getline(in, line)) {
       if (in.eof()) break;  // no newline after it: torn by a kill
-      const int64_t row = log_row_step(line);
-      if (row <= last || row > keep_until_step) continue;  // header, torn or past the checkpoint
+      const auto row = parse_train_log_row(line);
+      // The header, a torn row or one past the checkpoint.
+      if (!row || row->step <= last || row->step > keep_until_step) continue;
       kept.push_back(line);
-      last = row;
+      last = row->step;
     }
   }
   {
     AtomicOutput out(path);
     std::ofstream f(out.temp_path());
-    f << "step,wall_s,loss,valid_loss,valid_baseline,lr\n";
+    f << kTrainLogHeader << '\n';
     for (const auto& l : kept) f << l << '\n';
     f.close();
     out.commit();
@@ -275,12 +267,16 @@ TrainResult train(const TrainRequest& request) {
   // One log row; a checkpoint's row is flushed before the checkpoint is written, so that every
   // step up to a checkpoint is in the log whenever a session is killed.
   auto log_row = [&](int64_t at, double wall_s, double loss, const Validation* v, double lr) {
-    log << at << ',' << std::setprecision(6) << wall_s << ',' << loss << ',';
-    if (v)
-      log << v->loss << ',' << v->baseline;
-    else
-      log << ',';
-    log << ',' << lr << '\n';
+    TrainLogRow row;
+    row.step = at;
+    row.wall_s = wall_s;
+    row.loss = loss;
+    if (v) {
+      row.valid_loss = v->loss;
+      row.valid_baseline = v->baseline;
+    }
+    row.lr = lr;
+    log << format_train_log_row(row) << '\n';
     if (v) log.flush();
     if (!log) throw IoError(run_log_path(run) + ": cannot write");
   };

@@ -57,6 +57,8 @@ setup() {
   "$bsms" train run.json --out run --set data="$tmp/data" --threads 1 >/dev/null 2>&1
   cp -r run run_rolled
   "$bsms" rollout run_rolled --threads 1 >/dev/null 2>&1
+  cp -r run_rolled run_bad_log
+  printf '99,soon,0.5,,,0.001\n' >>run_bad_log/train_log.csv
   rm -rf data/multilevel
 
   # Damaged datasets.

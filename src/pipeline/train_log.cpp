@@ -1,0 +1,112 @@
+#include "pipeline/train_log.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace bsms {
+
+namespace {
+
+constexpr const char* kHeaderBeforeBaseline = "step,wall_s,loss,valid_loss,lr";
+
+std::vector<std::string> split_cells(const std::string& line) {
+  std::vector<std::string> cells;
+  size_t start = 0;
+  for (;;) {
+    const size_t comma = line.find(',', start);
+    cells.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
+    if (comma == std::string::npos) return cells;
+    start = comma + 1;
+  }
+}
+
+std::optional<int64_t> parse_step(const std::string& cell) {
+  if (cell.empty() || cell.size() > 18 ||
+      !std::all_of(cell.begin(), cell.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return std::nullopt;
+  return std::stoll(cell);
+}
+
+// A whole cell as a number ("nan" and "inf" as written by the stream included).
+std::optional<double> parse_number(const std::string& cell) {
+  if (cell.empty()) return std::nullopt;
+  char* end = nullptr;
+  const double value = std::strtod(cell.c_str(), &end);
+  if (end != cell.c_str() + cell.size()) return std::nullopt;
+  return value;
+}
+
+// Cells of one row in the given layout (with or without the valid_baseline column).
+std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bool baseline) {
+  if (cells.size() != (baseline ? 6u : 5u)) return std::nullopt;
+  TrainLogRow row;
+  const auto step = parse_step(cells[0]);
+  const auto wall = parse_number(cells[1]);
+  const auto loss = parse_number(cells[2]);
+  const auto lr = parse_number(cells.back());
+  if (!step || !wall || !loss || !lr) return std::nullopt;
+  row.step = *step;
+  row.wall_s = *wall;
+  row.loss = *loss;
+  row.lr = *lr;
+  const std::string& valid = cells[3];
+  const std::string none;
+  const std::string& zero = baseline ? cells[4] : none;
+  if (!valid.empty()) {
+    const auto v = parse_number(valid);
+    if (!v) return std::nullopt;
+    row.valid_loss = *v;
+  }
+  if (!zero.empty()) {
+    const auto z = parse_number(zero);
+    if (!z || valid.empty()) return std::nullopt;
+    row.valid_baseline = *z;
+  }
+  return row;
+}
+
+}  // namespace
+
+std::string format_train_log_row(const TrainLogRow& row) {
+  std::ostringstream out;
+  out.precision(6);
+  out << row.step << ',' << row.wall_s << ',' << row.loss << ',';
+  if (row.has_valid())
+    out << row.valid_loss << ',' << row.valid_baseline;
+  else
+    out << ',';
+  out << ',' << row.lr;
+  return out.str();
+}
+
+std::optional<TrainLogRow> parse_train_log_row(const std::string& line) {
+  return parse_cells(split_cells(line), true);
+}
+
+std::vector<TrainLogRow> read_train_log(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file + ": cannot open the training log (written by bsms train)");
+  std::string line;
+  if (!std::getline(in, line) || (line != kTrainLogHeader && line != kHeaderBeforeBaseline))
+    throw InputError(file + ": line 1 is not a training-log header (expected " +
+                     std::string(kTrainLogHeader) + ")");
+  const bool baseline = line == kTrainLogHeader;
+  std::vector<TrainLogRow> rows;
+  for (int64_t number = 2; std::getline(in, line); ++number) {
+    if (in.eof()) break;  // no newline after it: torn, or still being written
+    const auto row = parse_cells(split_cells(line), baseline);
+    if (!row)
+      throw InputError(file + ": line " + std::to_string(number) + " is not a log row (" +
+                       (baseline ? std::string(kTrainLogHeader) : kHeaderBeforeBaseline) +
+                       "): " + line.substr(0, 80));
+    rows.push_back(*row);
+  }
+  return rows;
+}
+
+}  // namespace bsms

@@ -1,0 +1,37 @@
+// RUN/train_log.csv (DESIGN.md "Runs"): one row per optimizer step, as a type with one writer
+// (bsms train appends rows) and one strict reader (bsms report's loss plots; resume keeps the
+// rows up to the checkpoint). Columns: step, wall_s, loss, valid_loss, valid_baseline, lr; the two
+// validation cells are empty on steps without validation. Logs written before issue 10 have no
+// valid_baseline column and read back with it NaN.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace bsms {
+
+inline constexpr const char* kTrainLogHeader = "step,wall_s,loss,valid_loss,valid_baseline,lr";
+
+struct TrainLogRow {
+  int64_t step = 0;
+  double wall_s = 0.0;  // training time of the run so far (all sessions)
+  double loss = 0.0;
+  double valid_loss = std::nan("");      // NaN: no validation at this step
+  double valid_baseline = std::nan("");  // the loss of predicting zero on the same frames
+  double lr = 0.0;
+  bool has_valid() const { return std::isfinite(valid_loss); }
+};
+
+// The row as written to the file, without the newline.
+std::string format_train_log_row(const TrainLogRow& row);
+// A whole row of the current layout, or none (the header, a torn or malformed line).
+std::optional<TrainLogRow> parse_train_log_row(const std::string& line);
+// Every row of a log. An unterminated last line (a session killed mid-write, or one still
+// writing) is left out; a missing file, an unknown header or a malformed row is an InputError
+// naming the file (and the line).
+std::vector<TrainLogRow> read_train_log(const std::string& file);
+
+}  // namespace bsms

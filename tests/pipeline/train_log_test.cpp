@@ -1,0 +1,99 @@
+// RUN/train_log.csv (pipeline/train_log.hpp): rows written by the trainer's formatter read back
+// unchanged; a torn last line is left out, a malformed row is one InputError naming the file and
+// the line; logs written before the valid_baseline column still read.
+#include "pipeline/train_log.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "core/error.hpp"
+
+namespace bsms {
+namespace {
+
+namespace fs = std::filesystem;
+
+// One folder per process (ctest runs tests in parallel), removed by each test at its end.
+fs::path log_dir() {
+  return fs::temp_directory_path() / ("bsms_train_log_" + std::to_string(::getpid()));
+}
+
+std::string temp_log(const std::string& name, const std::string& text) {
+  const fs::path dir = log_dir();
+  fs::create_directories(dir);
+  const fs::path file = dir / name;
+  std::ofstream(file, std::ios::binary) << text;
+  return file.string();
+}
+
+std::string error_of(const std::string& file) {
+  try {
+    read_train_log(file);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(TrainLogFile, RowsRoundTripAndTornLinesAreLeftOut) {
+  TrainLogRow plain;
+  plain.step = 1;
+  plain.wall_s = 0.093673;
+  plain.loss = 1.81095;
+  plain.lr = 1.99e-05;
+  TrainLogRow checked = plain;
+  checked.step = 2;
+  checked.valid_loss = 0.327;
+  checked.valid_baseline = 0.460242;
+  EXPECT_EQ(format_train_log_row(plain), "1,0.093673,1.81095,,,1.99e-05");
+  EXPECT_EQ(format_train_log_row(checked), "2,0.093673,1.81095,0.327,0.460242,1.99e-05");
+  const std::string file =
+      temp_log("log.csv", std::string(kTrainLogHeader) + "\n" + format_train_log_row(plain) + "\n" +
+                              format_train_log_row(checked) + "\n3,0.2,1.5,,");  // torn
+  const auto rows = read_train_log(file);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_FALSE(rows[0].has_valid());
+  EXPECT_TRUE(std::isnan(rows[0].valid_baseline));
+  EXPECT_EQ(rows[1].step, 2);
+  EXPECT_DOUBLE_EQ(rows[1].valid_loss, 0.327);
+  EXPECT_DOUBLE_EQ(rows[1].valid_baseline, 0.460242);
+  EXPECT_DOUBLE_EQ(rows[1].lr, 1.99e-05);
+  // The resume filter: whole rows only.
+  EXPECT_TRUE(parse_train_log_row(format_train_log_row(checked)).has_value());
+  EXPECT_FALSE(parse_train_log_row(kTrainLogHeader).has_value());
+  EXPECT_FALSE(parse_train_log_row("3,0.2,1.5,,").has_value());
+  EXPECT_FALSE(parse_train_log_row("3,0.2,1.5,,0.4,0.001").has_value());  // baseline, no loss
+  EXPECT_FALSE(parse_train_log_row("-3,0.2,1.5,,,0.001").has_value());
+
+  // Before issue 10: no valid_baseline column.
+  const auto old = read_train_log(temp_log("old.csv",
+                                           "step,wall_s,loss,valid_loss,lr\n"
+                                           "1,0.1,2.0,,0.001\n2,0.2,1.9,0.8,0.001\n"));
+  ASSERT_EQ(old.size(), 2u);
+  EXPECT_DOUBLE_EQ(old[1].valid_loss, 0.8);
+  EXPECT_TRUE(std::isnan(old[1].valid_baseline));
+  fs::remove_all(log_dir());
+}
+
+TEST(TrainLogFile, BadLogsNameTheFileAndLine) {
+  const std::string header = std::string(kTrainLogHeader) + "\n";
+  EXPECT_NE(error_of(temp_log("bad_row.csv", header + "1,0.1,2.0,,,0.001\n2,soon,1.9,,,0.001\n"))
+                .find("bad_row.csv: line 3 is not a log row"),
+            std::string::npos);
+  EXPECT_NE(error_of(temp_log("short.csv", header + "1,0.1,2.0,0.001\n")).find("line 2"),
+            std::string::npos);
+  EXPECT_NE(error_of(temp_log("header.csv", "step;loss\n1;2\n")).find("header.csv: line 1"),
+            std::string::npos);
+  EXPECT_NE(error_of("/nonexistent/train_log.csv").find("/nonexistent/train_log.csv"),
+            std::string::npos);
+  EXPECT_EQ(error_of(temp_log("empty_rows.csv", header)), "no error");
+  fs::remove_all(log_dir());
+}
+
+}  // namespace
+}  // namespace bsms
