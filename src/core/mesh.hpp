@@ -75,7 +75,7 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context);
 // Builds a mesh from in-memory arrays (validated like a file); used by tests and scene builders.
 Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells);
 
-// Checks finiteness, index ranges, degenerate cells; throws InputError prefixed with `context`.
+// Checks finiteness, index ranges, degenerate cells (mesh_checks.cpp); InputError with `context`.
 void validate_mesh(const Mesh& mesh, const std::string& context);
 
 // Cells with (near) zero measure or folded over a neighbour. `degenerate`: length, area or volume
