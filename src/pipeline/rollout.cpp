@@ -130,18 +130,17 @@ RolloutMetrics rollout(const RolloutRequest& request) {
 
   const double frame_dt = data.frame_dt() > 0 ? data.frame_dt() : 1.0;
   ErrorCurves curves;
-  std::vector<double> infer_ms, solver_ms_per_frame;
+  std::vector<double> solver_ms_per_frame;
   // Reference: constant-velocity extrapolation from the first two frames (zero acceleration).
   double inertial_sq = 0.0;
   int64_t inertial_count = 0;
-  double nodes_total = 0;
-  std::vector<DivergedTrajectory> diverged;
+  rollout_outputs::RolloutTally tally;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
   for (int64_t t = 0; t < count; ++t) {
     const TrajectoryMesh& mesh = data.mesh(t);
     const int64_t n = mesh.num_nodes();
-    nodes_total += static_cast<double>(n);
+    tally.nodes_total += static_cast<double>(n);
     int64_t frames = data.num_frames(t);
     if (request.max_steps > 0) frames = std::min(frames, request.max_steps + 2);
     if (frames < 3)
@@ -165,9 +164,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       Batch batch = adapter.make_batch({state});
       const auto accel = simulator->predict(batch);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
-      infer_ms.push_back(clock.milliseconds());
+      tally.infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(next).all().item<bool>()) {
-        diverged.push_back({t, f + 1});
+        tally.diverged.push_back({t, f + 1});
         break;
       }
       pred.push_back(next);
@@ -229,19 +228,12 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     metrics.inverted_cells_per_step.push_back(f);
     metrics.inverted_cells_max = std::max(metrics.inverted_cells_max, f);
   }
-  metrics.seeding = to_string(seeding);
-  metrics.infer_ms_per_step = rollout_outputs::median(infer_ms);
+  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, run);
   if (!solver_ms_per_frame.empty()) {
     metrics.solver_ms_per_frame = rollout_outputs::median(solver_ms_per_frame);
     if (metrics.infer_ms_per_step > 0)
       metrics.speedup_vs_solver = *metrics.solver_ms_per_frame / metrics.infer_ms_per_step;
   }
-  metrics.peak_rss_mb_infer = peak_rss_mb();
-  metrics.num_nodes_mean = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
-  metrics.threads = threads;
-  metrics.diverged = diverged;
-  metrics.levels = levels;
-  rollout_outputs::add_train_stats(metrics, run);
   write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet)
     std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all(world_pos) "

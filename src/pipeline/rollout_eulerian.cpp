@@ -61,15 +61,13 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
   const size_t nf = outputs.size();
   std::vector<std::vector<double>> sq(nf), sq_hold(nf);
   std::vector<std::vector<double>> values(nf);
-  std::vector<double> infer_ms;
-  double nodes_total = 0;
-  std::vector<DivergedTrajectory> diverged;
+  rollout_outputs::RolloutTally tally;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
   for (int64_t t = 0; t < count; ++t) {
     const TrajectoryMesh& mesh = data.mesh(t);
     const int64_t n = mesh.num_nodes();
-    nodes_total += static_cast<double>(n);
+    tally.nodes_total += static_cast<double>(n);
     int64_t frames = data.num_frames(t);
     if (request.max_steps > 0) frames = std::min(frames, request.max_steps + 1);
     if (frames < 2)
@@ -87,10 +85,10 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
       const auto output = simulator->predict(batch);
       auto [state, pressure] = adapter.integrate(batch, output, truth[f + 1],
                                                  spec.pressure ? truth_p[f + 1] : torch::Tensor());
-      infer_ms.push_back(clock.milliseconds());
+      tally.infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(state).all().item<bool>() ||
           (pressure.defined() && !torch::isfinite(pressure).all().item<bool>())) {
-        diverged.push_back({t, f + 1});
+        tally.diverged.push_back({t, f + 1});
         break;
       }
       pred.push_back(state);
@@ -185,14 +183,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
     for (size_t f = 0; f < sq[k].size(); ++f)
       curve.push_back(std::sqrt(sq[k][f] / (values[k][f] * static_cast<double>(outputs[k].width))));
   }
-  metrics.seeding = to_string(seeding);
-  metrics.infer_ms_per_step = rollout_outputs::median(infer_ms);
-  metrics.peak_rss_mb_infer = peak_rss_mb();
-  metrics.num_nodes_mean = count > 0 ? nodes_total / static_cast<double>(count) : 0.0;
-  metrics.threads = threads;
-  metrics.diverged = diverged;
-  metrics.levels = levels;
-  rollout_outputs::add_train_stats(metrics, run);
+  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, run);
   write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet) {
     std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all";

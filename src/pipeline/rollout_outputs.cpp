@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/config.hpp"
+#include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/xdmf.hpp"
 #include "pipeline/train_stats.hpp"
@@ -26,7 +27,15 @@ void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,
   }
 }
 
-void add_train_stats(RolloutMetrics& metrics, const std::string& run) {
+void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t count,
+                     Seeding seeding, int threads, int levels, const std::string& run) {
+  metrics.seeding = to_string(seeding);
+  metrics.infer_ms_per_step = median(tally.infer_ms);
+  metrics.peak_rss_mb_infer = peak_rss_mb();
+  metrics.num_nodes_mean = count > 0 ? tally.nodes_total / static_cast<double>(count) : 0.0;
+  metrics.threads = threads;
+  metrics.diverged = tally.diverged;
+  metrics.levels = levels;
   const std::string stats_file = run_stats_path(run);
   if (!fs::exists(stats_file)) return;
   const TrainStats stats = read_train_stats(stats_file);

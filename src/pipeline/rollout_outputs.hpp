@@ -3,12 +3,14 @@
 // run copied into its rollout metrics.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "pipeline/rollout.hpp"
 #include "pipeline/rollout_metrics.hpp"
+#include "pipeline/train_config.hpp"
 
 namespace bsms::rollout_outputs {
 
@@ -19,9 +21,18 @@ std::filesystem::path out_dir(const RolloutRequest& request);
 void write_xdmf_files(const std::string& out_h5, const std::filesystem::path& out_dir,
                       const std::string& split);
 
-// Training figures of RUN/train_stats.json copied into the metrics (none before a training
-// session has finished).
-void add_train_stats(RolloutMetrics& metrics, const std::string& run);
+// What every rollout tallies over its trajectories besides the errors.
+struct RolloutTally {
+  std::vector<double> infer_ms;  // per predicted step
+  double nodes_total = 0;        // summed over the trajectories
+  std::vector<DivergedTrajectory> diverged;
+};
+
+// The figures every rollout records besides its errors: seeding, median inference time, peak
+// memory, mean node count, threads, levels, the diverged trajectories, and the training figures
+// of RUN/train_stats.json (none before a training session has finished).
+void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t count,
+                     Seeding seeding, int threads, int levels, const std::string& run);
 
 // The median of per-step times (0 for none).
 double median(std::vector<double> v);
