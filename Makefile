@@ -2,6 +2,10 @@
 BUILD ?= build
 JOBS  ?= $(shell nproc)
 RUNS  ?= runs
+# The trained runs `make hardcases` examines (BSMS in MODELS/bsms, MGN in MODELS/mgn), e.g.
+# `make hardcases MODELS=runs/long HARDCASES_OUT=runs/hardcases_long` after `make train-long`.
+MODELS ?= $(RUNS)/demo
+HARDCASES_OUT ?= $(RUNS)/hardcases
 SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 # Debian 12 packages the project needs (DESIGN.md, Dependencies).
@@ -46,7 +50,7 @@ train-long: build
 	./scripts/train_long.sh $(BUILD) $(RUNS)/long
 
 hardcases: build
-	./scripts/hardcases.sh $(BUILD) $(RUNS)/hardcases $(RUNS)/demo
+	./scripts/hardcases.sh $(BUILD) $(HARDCASES_OUT) $(MODELS)
 
 bench: build
 	./scripts/bench.sh $(BUILD)

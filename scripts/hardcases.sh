@@ -6,8 +6,9 @@
 #   2. zero-shot inference on meshes at least 4x larger than any training mesh;
 #   3. seeding sensitivity at test time: MinAve, CloseCenter, random (thesis Table 4.8);
 #   4. long rollouts over 10x the training horizon, and stability on hard scenes.
-# Experiments 2-4 use the BSMS-GNN and MeshGraphNets runs of the demo (MODELS_DIR, default
-# runs/demo); when they are missing, the demo runs first.
+# Experiments 2-4 use the BSMS-GNN and MeshGraphNets runs MODELS_DIR/bsms and MODELS_DIR/mgn
+# (default runs/demo, the demo's; runs/long after the long recipe). When a folder named demo
+# lacks them the demo runs first; any other folder without them is exit 2.
 # Usage: scripts/hardcases.sh BUILD_DIR OUT_DIR [MODELS_DIR]
 #   (environment: HARDCASES_THREADS, HARDCASES_TRAJECTORIES, HARDCASES_SEEDING_TRAJECTORIES
 #   override the defaults below)
@@ -31,13 +32,19 @@ mkdir -p "$out_dir"
 start=$(date +%s)
 stage() { echo; echo "== [$(( $(date +%s) - start )) s] $*"; }
 
-stage "1. spatial-proximity failure: heat transfer on two sticks (bi-stride vs proximity)"
-"$bsms" experiment heat-sticks --out "$out_dir/heat_sticks" --threads "$threads"
-
 if [[ ! -f $models/bsms/rollout/metrics.json || ! -f $models/mgn/rollout/metrics.json ]]; then
+  if [[ $(basename "$models") != demo ]]; then
+    echo "hardcases: no trained runs in $models (expected $models/bsms and $models/mgn, each" \
+      "rolled out: rollout/metrics.json); train them first (make train-long writes runs/long)" >&2
+    exit 2
+  fi
   stage "no trained runs in $models: running the demo first"
   "$root/scripts/demo.sh" "$build_dir" "$models"
 fi
+
+stage "1. spatial-proximity failure: heat transfer on two sticks (bi-stride vs proximity)"
+"$bsms" experiment heat-sticks --out "$out_dir/heat_sticks" --threads "$threads"
+
 runs=("$models/bsms" "$models/mgn")
 
 # Test-only datasets from the default family (--split 0:0:100), each with fixed seeds.
@@ -73,7 +80,7 @@ stage "report"
   echo "# bsms hard cases"
   echo
   echo "Reproduce: \`scripts/hardcases.sh $build_dir $out_dir $models\` (\`make hardcases\`)."
-  echo "Models: \`$models/bsms\` (BSMS-GNN) and \`$models/mgn\` (MeshGraphNets) from the demo."
+  echo "Models: \`$models/bsms\` (BSMS-GNN) and \`$models/mgn\` (MeshGraphNets)."
   echo
   for section in heat_sticks/heat_sticks zero_shot/zero_shot seeding/seeding \
     long_rollout/long_rollout; do

@@ -1,5 +1,6 @@
 #include "pipeline/report.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -52,6 +53,11 @@ void write_edges(std::ofstream& f, const TrajectoryMesh& mesh, const std::vector
       }
 }
 
+// Steps averaged into each point of the plotted training-loss curve: 0.5 % of the run.
+size_t training_loss_window(size_t steps) {
+  return std::max<size_t>(1, steps / 200);
+}
+
 }  // namespace
 
 std::string write_report(const ReportRequest& request) {
@@ -83,8 +89,18 @@ std::string write_report(const ReportRequest& request) {
       if (std::isfinite(steps[s])) curve << s + 1 << ' ' << steps[s] << '\n';
     std::ofstream loss(plots / ("loss_" + std::to_string(r) + ".dat"));
     std::ofstream valid_out(plots / ("valid_" + std::to_string(r) + ".dat"));
-    for (const TrainLogRow& row : runs[r].log) {
-      loss << row.wall_s << ' ' << row.loss << '\n';
+    // Columns: wall time, the step's loss, the trailing mean of the losses (the plotted curve:
+    // per-step losses scatter over a decade and would hide the validation curve drawn in the
+    // same colour).
+    const std::vector<TrainLogRow>& log = runs[r].log;
+    const std::vector<double> mean = trailing_mean_loss(log, training_loss_window(log.size()));
+    for (size_t k = 0; k < log.size(); ++k) {
+      const TrainLogRow& row = log[k];
+      loss << row.wall_s << ' ' << row.loss << ' ';
+      if (std::isfinite(mean[k]))
+        loss << mean[k] << '\n';
+      else
+        loss << "NaN\n";
       if (!row.has_valid()) continue;
       valid_out << row.wall_s << ' ' << row.valid_loss << ' ';
       if (std::isfinite(row.valid_baseline))
@@ -142,8 +158,9 @@ std::string write_report(const ReportRequest& request) {
     for (size_t r = 0; r < runs.size(); ++r)
       g << (r ? ", " : "")
         << gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string())
-        << " using 1:2 with lines lw 0.5 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " train");
+        << " using 1:3 with lines lw 1 dt 3 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + " train (mean of " +
+                          std::to_string(training_loss_window(runs[r].log.size())) + " steps)");
     for (size_t r = 0; r < runs.size(); ++r) {
       const std::string valid =
           gnuplot_quoted((plots / ("valid_" + std::to_string(r) + ".dat")).string());

@@ -109,4 +109,23 @@ std::vector<TrainLogRow> read_train_log(const std::string& file) {
   return rows;
 }
 
+std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window) {
+  window = std::max<size_t>(window, 1);
+  std::vector<double> mean(rows.size());
+  double sum = 0.0;
+  size_t finite = 0;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    if (std::isfinite(rows[k].loss)) {
+      sum += rows[k].loss;
+      ++finite;
+    }
+    if (k >= window && std::isfinite(rows[k - window].loss)) {
+      sum -= rows[k - window].loss;
+      --finite;
+    }
+    mean[k] = finite ? sum / static_cast<double>(finite) : std::nan("");
+  }
+  return mean;
+}
+
 }  // namespace bsms

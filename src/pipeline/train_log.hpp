@@ -34,4 +34,9 @@ std::optional<TrainLogRow> parse_train_log_row(const std::string& line);
 // naming the file (and the line).
 std::vector<TrainLogRow> read_train_log(const std::string& file);
 
+// Per row, the mean of the finite training losses among the last `window` rows (itself
+// included; NaN where there is none): the curve bsms report plots, since per-step losses of a
+// batch of 1-2 scatter over a decade. `window` 0 is taken as 1.
+std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window);
+
 }  // namespace bsms

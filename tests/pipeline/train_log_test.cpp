@@ -1,6 +1,7 @@
 // RUN/train_log.csv (pipeline/train_log.hpp): rows written by the trainer's formatter read back
 // unchanged; a torn last line is left out, a malformed row is one InputError naming the file and
-// the line; logs written before the valid_baseline column still read.
+// the line; logs written before the valid_baseline column still read; the plotted trailing
+// mean of the loss equals the mean computed window by window.
 #include "pipeline/train_log.hpp"
 
 #include <gtest/gtest.h>
@@ -9,7 +10,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -93,6 +96,36 @@ TEST(TrainLogFile, BadLogsNameTheFileAndLine) {
             std::string::npos);
   EXPECT_EQ(error_of(temp_log("empty_rows.csv", header)), "no error");
   fs::remove_all(log_dir());
+}
+
+// The report's training-loss curve against a brute-force mean over each window, with NaN losses
+// (a diverged step) skipped and a window holding only NaN giving NaN.
+TEST(TrainLogFile, TrailingMeanLossEqualsTheMeanOfEachWindow) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> loss(0.01, 3.0);
+  std::vector<TrainLogRow> rows(500);
+  for (size_t k = 0; k < rows.size(); ++k) {
+    rows[k].step = static_cast<int64_t>(k + 1);
+    rows[k].loss = (k % 37 == 5 || (k >= 200 && k < 204)) ? std::nan("") : loss(rng);
+  }
+  for (size_t window : {1u, 3u, 4u, 50u, 1000u}) {
+    const std::vector<double> mean = trailing_mean_loss(rows, window);
+    ASSERT_EQ(mean.size(), rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) {
+      double sum = 0.0;
+      int finite = 0;
+      for (size_t i = k + 1 > window ? k + 1 - window : 0; i <= k; ++i)
+        if (std::isfinite(rows[i].loss)) sum += rows[i].loss, ++finite;
+      if (finite == 0) {
+        EXPECT_TRUE(std::isnan(mean[k])) << "window " << window << ", row " << k;
+      } else {
+        EXPECT_NEAR(mean[k], sum / finite, 1e-9) << "window " << window << ", row " << k;
+      }
+    }
+  }
+  EXPECT_TRUE(std::isnan(trailing_mean_loss(rows, 4)[203]));       // rows 200-203 are all NaN
+  EXPECT_DOUBLE_EQ(trailing_mean_loss(rows, 0)[0], rows[0].loss);  // window 0 acts as 1
+  EXPECT_TRUE(trailing_mean_loss({}, 5).empty());
 }
 
 }  // namespace
