@@ -115,7 +115,10 @@ TEST(TrainLogFile, TrailingMeanLossEqualsTheMeanOfEachWindow) {
       double sum = 0.0;
       int finite = 0;
       for (size_t i = k + 1 > window ? k + 1 - window : 0; i <= k; ++i)
-        if (std::isfinite(rows[i].loss)) sum += rows[i].loss, ++finite;
+        if (std::isfinite(rows[i].loss)) {
+          sum += rows[i].loss;
+          ++finite;
+        }
       if (finite == 0) {
         EXPECT_TRUE(std::isnan(mean[k])) << "window " << window << ", row " << k;
       } else {
