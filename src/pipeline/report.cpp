@@ -27,6 +27,7 @@ struct RunData {
   std::string dir, label;
   RolloutMetrics metrics;
   std::vector<TrainLogRow> log;  // RUN/train_log.csv
+  size_t loss_window = 1;        // steps in each point of the plotted training-loss curve
 };
 
 // A figure that may be absent, as a number or NaN (shown as "–").
@@ -72,6 +73,7 @@ std::string write_report(const ReportRequest& request) {
     r.metrics = read_rollout_metrics(metrics.string());
     r.label = fs::path(dir).filename().string() + " (" + r.metrics.model + ")";
     r.log = read_train_log((fs::path(dir) / "train_log.csv").string());
+    r.loss_window = training_loss_window(r.log.size());
     runs.push_back(std::move(r));
   }
   const fs::path out = request.out;
@@ -93,7 +95,7 @@ std::string write_report(const ReportRequest& request) {
     // per-step losses scatter over a decade and would hide the validation curve drawn in the
     // same colour).
     const std::vector<TrainLogRow>& log = runs[r].log;
-    const std::vector<double> mean = trailing_mean_loss(log, training_loss_window(log.size()));
+    const std::vector<double> mean = trailing_mean_loss(log, runs[r].loss_window);
     for (size_t k = 0; k < log.size(); ++k) {
       const TrainLogRow& row = log[k];
       loss << row.wall_s << ' ' << row.loss << ' ';
@@ -159,8 +161,8 @@ std::string write_report(const ReportRequest& request) {
       g << (r ? ", " : "")
         << gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string())
         << " using 1:3 with lines lw 1 dt 3 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " train (mean of " +
-                          std::to_string(training_loss_window(runs[r].log.size())) + " steps)");
+        << gnuplot_quoted(runs[r].label + " train (mean of " + std::to_string(runs[r].loss_window) +
+                          " steps)");
     for (size_t r = 0; r < runs.size(); ++r) {
       const std::string valid =
           gnuplot_quoted((plots / ("valid_" + std::to_string(r) + ".dat")).string());
