@@ -115,7 +115,9 @@ struct Batch {
   std::vector<torch::Tensor> positions;  // {X, x} / position_scale, [N, dim] each
   torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
   torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
-  torch::Tensor noise;                   // [N, dim] noise added to cur (undefined without noise)
+  // [N, dim] how far cur is from the truth: the noise added to it, plus the drift of a
+  // pushed-forward training sample (undefined without noise)
+  torch::Tensor noise;
   MultilevelTensors graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
   // With spec.has_momentum(): each node's free group (-1: none; group ids are unique in the

@@ -92,6 +92,16 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
             f.context("velocity_input"), "\"auto\", \"on\" or \"off\"");
     c.features.density_noise_std = f.opt<double>("density_noise_std", c.features.density_noise_std);
     require(c.features.density_noise_std >= 0, f.context("density_noise_std"), ">= 0");
+    c.features.pushforward = f.opt<int>("pushforward", c.features.pushforward);
+    require(c.features.pushforward >= 0 && c.features.pushforward <= 100, f.context("pushforward"),
+            "in 0..100 (frames rolled out before a sample; 0 = off)");
+    c.features.pushforward_from = f.opt<int64_t>("pushforward_from", c.features.pushforward_from);
+    require(c.features.pushforward_from >= 0, f.context("pushforward_from"), ">= 0 (a step)");
+    c.features.pushforward_target =
+        f.opt<std::string>("pushforward_target", c.features.pushforward_target);
+    require(c.features.pushforward_target == "position" ||
+                c.features.pushforward_target == "acceleration",
+            f.context("pushforward_target"), "\"position\" or \"acceleration\"");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -160,6 +170,11 @@ Json to_json(const TrainConfig& c) {
     f["velocity_input"] = c.features.velocity_input;
   if (c.features.density_noise_std != defaults.density_noise_std)
     f["density_noise_std"] = c.features.density_noise_std;
+  if (c.features.pushforward != defaults.pushforward) {
+    f["pushforward"] = c.features.pushforward;
+    f["pushforward_from"] = c.features.pushforward_from;
+    f["pushforward_target"] = c.features.pushforward_target;
+  }
   return j;
 }
 

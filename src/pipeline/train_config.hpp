@@ -53,6 +53,18 @@ struct FeatureConfig {
   std::string velocity_input = "auto";
   // Eulerian data: Gaussian noise on the density input (the velocity input gets noise_std).
   double density_noise_std = 0.0;
+  // Training against rollout drift (Lagrangian data; "pushforward", Brandstetter et al. 2022):
+  // each training sample at frame t starts `pushforward` frames earlier from the truth and is
+  // rolled out by the model itself (no gradient) up to t, so the input is the model's own drifted
+  // state; the target is the truth, corrected for the drift as for noise (noise_gamma). 0: off.
+  int pushforward = 0;
+  // The first training step (counted from 1, as in train_log.csv) that pushes forward; the
+  // earlier ones train on the truth plus noise while the model's own rollouts are still far off.
+  int64_t pushforward_from = 1000;
+  // The target of a pushed-forward sample: "position" (back to the true trajectory: the drift is
+  // corrected like noise, with noise_gamma) or "acceleration" (the frame's true target, as if the
+  // state had not drifted: a rigid drift the state cannot reveal is not asked to be undone).
+  std::string pushforward_target = "position";
 };
 
 struct OptimizerConfig {

@@ -296,6 +296,16 @@ TrainResult train(const TrainRequest& request) {
   // One training batch: deterministic in (seed, step), noise included; this rank's slots.
   const int per_rank = config.optimizer.batch_size;
   double batch_weight = 0.0;  // predicted nodes of the last batch: the weight of its loss
+  // Pushforward: the model's own rollout (no gradient, inference mode) feeds the samples of steps
+  // from features.pushforward_from on (steps count from 1 as in the log; `index` from 0; never
+  // the normaliser batches, whose indices are < 0).
+  const Predictor rollout_step = [&](const Batch& b) {
+    torch::NoGradGuard no_grad;
+    simulator->eval();
+    torch::Tensor out = simulator->predict(b);
+    simulator->train();
+    return out;
+  };
   auto training_batch = [&](int64_t index) {
     std::vector<SampleRef> refs;
     std::vector<at::Generator> generators;
@@ -304,7 +314,10 @@ TrainResult train(const TrainRequest& request) {
       refs.push_back(draw_sample(train_data, config.seed, index, slot));
       generators.push_back(at::detail::createCPUGenerator(noise_seed(config.seed, index, slot)));
     }
-    TrainBatch b = make_train_batch(resolved, config, train_data, store, refs, &generators);
+    const bool push =
+        config.features.pushforward > 0 && index + 1 >= config.features.pushforward_from;
+    TrainBatch b = make_train_batch(resolved, config, train_data, store, refs, &generators,
+                                    push ? &rollout_step : nullptr);
     batch_weight = b.batch.mask.sum().item<double>();
     return b;
   };

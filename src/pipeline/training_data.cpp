@@ -36,6 +36,8 @@ std::string position_field(const Dataset& data) {
 struct LoadedSample {
   FrameState state;
   torch::Tensor next;
+  // Pushed-forward samples only: state.cur minus the truth, and the truth at t-1 and t.
+  torch::Tensor drift, truth_prev, truth_cur;
 };
 
 LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref) {
@@ -51,6 +53,42 @@ LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef
   s.state.cur = x[1];
   s.state.next = x[2];
   s.next = x[2];
+  return s;
+}
+
+// Sample `ref` as the model reaches it: from the truth at frames t-1-u and t-u (u = min(unroll,
+// t-1)), u steps of the predictor, with the truth on the nodes it does not predict.
+LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Dataset& data,
+                                   GraphStore& store, const SampleRef& ref, int unroll,
+                                   const Predictor& predictor) {
+  const int64_t u = std::min<int64_t>(unroll, ref.frame - 1);
+  const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
+  const int64_t n = mesh.num_nodes();
+  const int dim = data.dim();
+  // x[i] is frame t-1-u+i: x[u+1] is t, x[u+2] is t+1.
+  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1 - u, u + 3);
+  auto x = torch::from_blob(frames.data(), {u + 3, n, dim}, torch::kFloat32).clone();
+  LoadedSample s;
+  s.state.graphs = &store.get(mesh);
+  s.state.mesh = &mesh;
+  s.state.prev = x[0];
+  s.state.cur = x[1];
+  s.state.next = x[2];
+  for (int64_t i = 0; i < u; ++i) {
+    const Batch b = adapter.make_batch({s.state});
+    torch::Tensor predicted = adapter.integrate(b, predictor(b), x[i + 2]);
+    if (!torch::isfinite(predicted).all().item<bool>())
+      throw std::runtime_error("pushforward: the model's rollout of trajectory " +
+                               std::to_string(ref.trajectory) + " reached a non-finite position " +
+                               "at frame " + std::to_string(ref.frame - u + i + 1));
+    s.state.prev = s.state.cur;
+    s.state.cur = predicted;
+    s.state.next = x[i + 3];
+  }
+  s.next = x[u + 2];
+  s.drift = s.state.cur - x[u + 1];
+  s.truth_prev = x[u];
+  s.truth_cur = x[u + 1];
   return s;
 }
 
@@ -110,6 +148,10 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
                        ": needs the field world_pos (a Lagrangian model) or velocity (an "
                        "Eulerian model)");
     r.eulerian = true;
+    if (config.features.pushforward > 0)
+      throw InputError("features.pushforward: " + std::to_string(config.features.pushforward) +
+                       " needs Lagrangian data (world_pos); " + train_data.location() +
+                       " is Eulerian (velocity): set it to 0");
   }
   const bool public_layout = train_data.is_public_layout();
   const int mesh_dim = train_data.mesh(0).dim;
@@ -200,7 +242,7 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
 
 TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
                             GraphStore& store, const std::vector<SampleRef>& refs,
-                            std::vector<at::Generator>* generators) {
+                            std::vector<at::Generator>* generators, const Predictor* predictor) {
   TrainBatch b;
   const bool noisy = generators != nullptr;
   if (noisy && generators->size() != refs.size())
@@ -232,17 +274,35 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     return b;
   }
   const LagrangianAdapter adapter(r.spec);
+  const int unroll = noisy && predictor ? config.features.pushforward : 0;
   std::vector<FrameState> states;
-  std::vector<torch::Tensor> nexts, noise;
+  std::vector<torch::Tensor> nexts, noise, drifts, truth_prevs, truth_curs;
   for (size_t k = 0; k < refs.size(); ++k) {
-    LoadedSample s = load_sample(data, store, refs[k]);
+    LoadedSample s = unroll > 0
+                         ? pushed_forward_sample(adapter, data, store, refs[k], unroll, *predictor)
+                         : load_sample(data, store, refs[k]);
     states.push_back(s.state);
     nexts.push_back(s.next);
     if (noisy)
       noise.push_back(torch::randn(s.state.cur.sizes(), (*generators)[k], torch::kFloat32) *
                       config.features.noise_std);
+    if (unroll > 0) {
+      drifts.push_back(s.drift);
+      truth_prevs.push_back(s.truth_prev);
+      truth_curs.push_back(s.truth_cur);
+    }
   }
   b.batch = adapter.make_batch(states, noise);
+  if (!drifts.empty() && config.features.pushforward_target == "acceleration") {
+    // The frame's true (noise-corrected) target, as if the state had not drifted: the target
+    // formula applied to the truth plus the same noise.
+    Batch truth = b.batch;
+    truth.prev = torch::cat(truth_prevs, 0);
+    truth.cur = torch::cat(truth_curs, 0) + b.batch.noise;
+    b.target = adapter.target(truth, torch::cat(nexts, 0), config.features.noise_gamma);
+    return b;
+  }
+  if (!drifts.empty()) b.batch.noise = b.batch.noise + torch::cat(drifts, 0);
   b.target =
       adapter.target(b.batch, torch::cat(nexts, 0), noisy ? config.features.noise_gamma : 1.0);
   return b;

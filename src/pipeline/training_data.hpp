@@ -8,6 +8,7 @@
 #include <torch/types.h>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -58,10 +59,19 @@ struct TrainBatch {
   torch::Tensor target;
 };
 
+// The model's prediction for a batch (Lagrangian: acceleration or velocity), without gradient.
+using Predictor = std::function<torch::Tensor(const Batch&)>;
+
 // The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
-// of refs[k] is drawn from generators[k] (no noise without generators).
+// of refs[k] is drawn from generators[k] (no noise without generators). With a predictor and
+// config.features.pushforward = u > 0 (Lagrangian data), sample (trajectory, t) starts from the
+// truth at frames t-1-u' and t-u' (u' = min(u, t-1)) and is rolled out by the predictor to frame
+// t; the noise is added to that state and the target is the truth's next frame, corrected by
+// (1 - noise_gamma) times noise plus drift (Batch::noise), or with pushforward_target
+// "acceleration" the frame's own noisy target, as if the state had not drifted.
 TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
                             GraphStore& store, const std::vector<SampleRef>& refs,
-                            std::vector<at::Generator>* generators);
+                            std::vector<at::Generator>* generators,
+                            const Predictor* predictor = nullptr);
 
 }  // namespace bsms

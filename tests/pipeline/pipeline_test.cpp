@@ -1,5 +1,6 @@
 // End-to-end training and rollout on a small synthetic Lagrangian dataset: a triangulated plate
 // moving under gravity and drag with a per-trajectory initial velocity and two pinned nodes.
+#include <ATen/CPUGeneratorImpl.h>
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 #include <unistd.h>
@@ -7,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <vector>
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
@@ -15,6 +18,7 @@
 #include "pipeline/simulator.hpp"
 #include "pipeline/train_stats.hpp"
 #include "pipeline/trainer.hpp"
+#include "pipeline/training_data.hpp"
 #include "plate_data.hpp"
 
 namespace bsms {
@@ -207,6 +211,141 @@ TEST(ValidSplit, MissingIsSaidDamagedIsAnError) {
     FAIL() << "a damaged valid split trained";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("valid.h5"), std::string::npos) << e.what();
+  }
+}
+
+// The training loss of every logged step, in order.
+std::vector<double> logged_losses(const std::string& run) {
+  std::ifstream in(run_log_path(run));
+  std::string line;
+  std::getline(in, line);
+  std::vector<double> losses;
+  while (std::getline(in, line)) {
+    const auto a = line.find(','), b = line.find(',', a + 1), c = line.find(',', b + 1);
+    losses.push_back(std::stod(line.substr(b + 1, c - b - 1)));
+  }
+  return losses;
+}
+
+// Pushforward (features.pushforward): the sample at frame t is the model's own rollout from the
+// truth at t-1-u and t-u, and its target the truth corrected for noise plus drift.
+class Pushforward : public PipelineTest {
+ protected:
+  void SetUp() override {
+    config_.data = (dir_ / "data").string();
+    config_.model.levels = 2;
+    config_.features.noise_std = 1e-3;
+    config_.features.noise_gamma = 0.1;
+    config_.features.pushforward = 3;
+    train_ = std::make_unique<Dataset>(Dataset::open_split(config_.data, "train"));
+    resolved_ = resolve_model(config_, *train_);
+    store_ = std::make_unique<GraphStore>(config_.model.seeding, resolved_.levels,
+                                          std::vector<std::string>{});
+  }
+  // The same refs and the same noise each call.
+  TrainBatch batch(const std::vector<SampleRef>& refs, const Predictor* predictor) {
+    std::vector<at::Generator> generators;
+    for (size_t k = 0; k < refs.size(); ++k)
+      generators.push_back(at::detail::createCPUGenerator(11 + k));
+    return make_train_batch(resolved_, config_, *train_, *store_, refs, &generators, predictor);
+  }
+  torch::Tensor frames(int64_t trajectory) const {
+    auto x = train_->read(trajectory, "world_pos", 0, train_->num_frames(trajectory));
+    const int64_t n = train_->mesh(trajectory).num_nodes();
+    return torch::tensor(x).reshape({train_->num_frames(trajectory), n, 2});
+  }
+  TrainConfig config_;
+  std::unique_ptr<Dataset> train_;
+  ResolvedModel resolved_;
+  std::unique_ptr<GraphStore> store_;
+};
+
+TEST_F(Pushforward, AModelThatPredictsNothingExtrapolatesTheVelocity) {
+  // Zero acceleration: u steps from frames t-1-u, t-u move the solved nodes on at the velocity
+  // x_{t-u} - x_{t-1-u}; pinned nodes keep the truth. Frame 2 can only unroll 1 step, frame 1 none.
+  const Predictor zero = [](const Batch& b) { return torch::zeros_like(b.cur); };
+  for (const SampleRef ref : {SampleRef{2, 7}, SampleRef{4, 2}, SampleRef{1, 1}}) {
+    const int64_t t = ref.frame, u = std::min<int64_t>(3, t - 1);
+    const auto x = frames(ref.trajectory);
+    const TrainBatch plain = batch({ref}, nullptr);
+    const TrainBatch pushed = batch({ref}, &zero);
+    const auto mask = plain.batch.mask.unsqueeze(1);
+    const auto noise = plain.batch.noise;  // what the plain batch added to x_t
+    const auto v = x[t - u] - x[t - u - 1];
+    const auto cur = torch::where(mask, x[t - u] + u * v, x[t]);
+    const auto prev = torch::where(mask, x[t - u] + (u - 1) * v, x[t - 1]);
+    EXPECT_TRUE(torch::allclose(pushed.batch.cur, cur + noise, 1e-6, 1e-7)) << t;
+    EXPECT_TRUE(torch::allclose(pushed.batch.prev, prev, 1e-6, 1e-7)) << t;
+    EXPECT_TRUE(torch::allclose(pushed.batch.noise, noise + (cur - x[t]), 1e-6, 1e-7)) << t;
+    const auto target = x[t + 1] + 0.9 * (noise + cur - x[t]) - 2 * (cur + noise) + prev;
+    EXPECT_TRUE(
+        torch::allclose(pushed.target, torch::where(mask, target, pushed.target), 1e-6, 1e-7))
+        << t;
+    // pushforward_target "acceleration": the same inputs, and the frame's own target.
+    config_.features.pushforward_target = "acceleration";
+    const TrainBatch kept = batch({ref}, &zero);
+    config_.features.pushforward_target = "position";
+    EXPECT_TRUE(torch::equal(kept.batch.inputs, pushed.batch.inputs)) << t;
+    EXPECT_TRUE(torch::allclose(kept.target, plain.target, 1e-5, 1e-7)) << t;
+    if (u == 0) {
+      EXPECT_TRUE(torch::equal(pushed.batch.inputs, plain.batch.inputs));
+      EXPECT_TRUE(torch::equal(pushed.target, plain.target));
+    } else {
+      EXPECT_GT((pushed.batch.cur - plain.batch.cur).abs().max().item<double>(), 1e-5) << t;
+    }
+  }
+}
+
+TEST_F(Pushforward, APerfectModelLeavesTheSampleAsItWas) {
+  // The plate's exact law, a = g - c (x_t - x_{t-1}) (plate_data.hpp): rolling it out reproduces
+  // the truth, so the pushed-forward batch is the plain one (to float rounding).
+  const Predictor exact = [](const Batch& b) {
+    auto a = -0.1 * (b.cur - b.prev);
+    a.select(1, 1).add_(-0.0005);
+    return a;
+  };
+  const std::vector<SampleRef> refs = {{0, 9}, {3, 5}};
+  const TrainBatch plain = batch(refs, nullptr);
+  const TrainBatch pushed = batch(refs, &exact);
+  EXPECT_TRUE(torch::allclose(pushed.batch.cur, plain.batch.cur, 1e-5, 1e-7));
+  EXPECT_TRUE(torch::allclose(pushed.batch.inputs, plain.batch.inputs, 1e-4, 1e-6));
+  EXPECT_TRUE(torch::allclose(pushed.target, plain.target, 1e-4, 1e-7));
+}
+
+TEST_F(Pushforward, TrainsAndIsAnInputErrorOutOfRange) {
+  const fs::path dir = fresh_dir("pushforward_" + std::to_string(::getpid()));
+  TrainRequest r;
+  r.config_path = write_config(dir, dir_ / "data", "bsms", 120);
+  r.out = (dir / "run").string();
+  r.threads = 2;
+  r.quiet = true;
+  r.overrides = {"features.pushforward=2", "features.pushforward_from=40"};
+  const TrainResult result = train(r);
+  EXPECT_EQ(result.steps, 120);
+  EXPECT_TRUE(std::isfinite(result.final_valid_loss));
+  const Json saved = load_json_file(run_config_path(r.out))["config"];
+  EXPECT_EQ(saved["features"]["pushforward"].get<int>(), 2);
+  EXPECT_EQ(saved["features"]["pushforward_from"].get<int>(), 40);
+  // The same run without it: identical losses up to step 39, different from step 40 on.
+  const std::string pushed_run = r.out;
+  r.out = (dir / "plain").string();
+  r.overrides = {};
+  train(r);
+  const auto pushed = logged_losses(pushed_run), plain = logged_losses(r.out);
+  ASSERT_EQ(pushed.size(), 120u);
+  ASSERT_EQ(plain.size(), 120u);
+  for (size_t i = 0; i < 39; ++i) EXPECT_EQ(pushed[i], plain[i]) << "step " << i + 1;
+  EXPECT_NE(pushed[39], plain[39]);
+  r.out = (dir / "bad").string();
+  for (const char* bad :
+       {"features.pushforward=-1", "features.pushforward=101", "features.pushforward_from=-5"}) {
+    r.overrides = {bad};
+    try {
+      train(r);
+      ADD_FAILURE() << bad << ": expected an InputError";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("features.pushforward"), std::string::npos) << e.what();
+    }
   }
 }
 
