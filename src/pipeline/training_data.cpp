@@ -78,9 +78,10 @@ LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Datas
     const Batch b = adapter.make_batch({s.state});
     torch::Tensor predicted = adapter.integrate(b, predictor(b), x[i + 2]);
     if (!torch::isfinite(predicted).all().item<bool>())
-      throw std::runtime_error("pushforward: the model's rollout of trajectory " +
-                               std::to_string(ref.trajectory) + " reached a non-finite position " +
-                               "at frame " + std::to_string(ref.frame - u + i + 1));
+      throw NumericalError("pushforward: the model's rollout of training trajectory " +
+                           std::to_string(ref.trajectory) + " reached a non-finite position at " +
+                           "frame " + std::to_string(ref.frame - u + i + 1) + " (sample frame " +
+                           std::to_string(ref.frame) + ")");
     s.state.prev = s.state.cur;
     s.state.cur = predicted;
     s.state.next = x[i + 3];
