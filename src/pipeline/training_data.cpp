@@ -36,23 +36,25 @@ std::string position_field(const Dataset& data) {
 struct LoadedSample {
   FrameState state;
   torch::Tensor next;
-  // Pushed-forward samples only: state.cur minus the truth, and the truth at t-1 and t.
-  torch::Tensor drift, truth_prev, truth_cur;
+  torch::Tensor truth;  // [before + 3, N, dim]: the true frames t-1-before .. t+1
 };
 
-LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref) {
+// Sample `ref` (frame t) with the state at frames t-1-before and t-before (the truth; before > 0
+// for pushforward, which rolls it on to t) and the true next frame t+1.
+LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref,
+                         int64_t before = 0) {
   const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
   const int64_t n = mesh.num_nodes();
   const int dim = data.dim();
-  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1, 3);
-  auto x = torch::from_blob(frames.data(), {3, n, dim}, torch::kFloat32).clone();
+  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1 - before, before + 3);
   LoadedSample s;
+  s.truth = torch::from_blob(frames.data(), {before + 3, n, dim}, torch::kFloat32).clone();
   s.state.graphs = &store.get(mesh);
   s.state.mesh = &mesh;
-  s.state.prev = x[0];
-  s.state.cur = x[1];
-  s.state.next = x[2];
-  s.next = x[2];
+  s.state.prev = s.truth[0];
+  s.state.cur = s.truth[1];
+  s.state.next = s.truth[2];
+  s.next = s.truth[before + 2];
   return s;
 }
 
@@ -62,18 +64,8 @@ LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Datas
                                    GraphStore& store, const SampleRef& ref, int unroll,
                                    const Predictor& predictor) {
   const int64_t u = std::min<int64_t>(unroll, ref.frame - 1);
-  const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
-  const int64_t n = mesh.num_nodes();
-  const int dim = data.dim();
-  // x[i] is frame t-1-u+i: x[u+1] is t, x[u+2] is t+1.
-  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1 - u, u + 3);
-  auto x = torch::from_blob(frames.data(), {u + 3, n, dim}, torch::kFloat32).clone();
-  LoadedSample s;
-  s.state.graphs = &store.get(mesh);
-  s.state.mesh = &mesh;
-  s.state.prev = x[0];
-  s.state.cur = x[1];
-  s.state.next = x[2];
+  LoadedSample s = load_sample(data, store, ref, u);
+  const auto& x = s.truth;  // x[i] is frame t-1-u+i: x[u+1] is t
   for (int64_t i = 0; i < u; ++i) {
     const Batch b = adapter.make_batch({s.state});
     torch::Tensor predicted = adapter.integrate(b, predictor(b), x[i + 2]);
@@ -86,10 +78,6 @@ LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Datas
     s.state.cur = predicted;
     s.state.next = x[i + 3];
   }
-  s.next = x[u + 2];
-  s.drift = s.state.cur - x[u + 1];
-  s.truth_prev = x[u];
-  s.truth_cur = x[u + 1];
   return s;
 }
 
@@ -287,10 +275,11 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     if (noisy)
       noise.push_back(torch::randn(s.state.cur.sizes(), (*generators)[k], torch::kFloat32) *
                       config.features.noise_std);
-    if (unroll > 0) {
-      drifts.push_back(s.drift);
-      truth_prevs.push_back(s.truth_prev);
-      truth_curs.push_back(s.truth_cur);
+    if (unroll > 0) {  // the truth at t-1 and t, and how far the rollout drifted from it
+      const int64_t frames = s.truth.size(0);
+      truth_prevs.push_back(s.truth[frames - 3]);
+      truth_curs.push_back(s.truth[frames - 2]);
+      drifts.push_back(s.state.cur - truth_curs.back());
     }
   }
   b.batch = adapter.make_batch(states, noise);
