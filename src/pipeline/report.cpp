@@ -256,6 +256,28 @@ std::string write_report(const ReportRequest& request) {
        << format_number(cv, 2, Notation::kScientific)
        << " m. Inverted cells: the largest fraction of predicted cells turned inside out at a "
           "step (the solver never inverts one).\n";
+  if (std::any_of(runs.begin(), runs.end(),
+                  [](const auto& r) { return r.metrics.rmse_all_parts; })) {
+    md << "\nWhere the position error lies, body by body (RMSE-all split into each body's "
+          "centre, its rotation about the centre and its deformation; the squares add up to "
+          "RMSE-all's). On colliding bodies the centre part is mostly which way they leave a "
+          "collision; the deformation part measures the elastic response.\n\n"
+       << "| run | RMSE-all | centre | rotation | deformation |\n|---|---|---|---|---|\n";
+    const auto row = [&md](const std::string& name, double all, const MotionRmse& p) {
+      md << "| " << name << " | " << format_number(all, 2, Notation::kScientific) << " | "
+         << format_number(p.centre, 2, Notation::kScientific) << " | "
+         << format_number(p.rotation, 2, Notation::kScientific) << " | "
+         << format_number(p.deformation, 2, Notation::kScientific) << " |\n";
+    };
+    for (const auto& r : runs)
+      if (r.metrics.rmse_all_parts)
+        row(fs::path(r.dir).filename().string(), primary_rmse(r.metrics, r.metrics.rmse_all),
+            *r.metrics.rmse_all_parts);
+    const RolloutMetrics& first = runs.front().metrics;
+    if (first.rmse_all_parts_constant_velocity)
+      row("constant velocity (" + fs::path(runs.front().dir).filename().string() + "'s data)", cv,
+          *first.rmse_all_parts_constant_velocity);
+  }
   md << "\n";
   for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";
   const fs::path report = out / "report.md";

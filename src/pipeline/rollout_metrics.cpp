@@ -31,6 +31,25 @@ std::optional<FieldRmse> field_rmse_from_json(JsonObjectReader& parent, const st
   return rmse;
 }
 
+Json to_json(const MotionRmse& parts) {
+  return {
+      {"centre", parts.centre}, {"rotation", parts.rotation}, {"deformation", parts.deformation}};
+}
+
+// {centre, rotation, deformation}; absent (older files) is none.
+std::optional<MotionRmse> motion_rmse_from_json(JsonObjectReader& parent, const std::string& key) {
+  if (!parent.has(key)) return std::nullopt;
+  const Json& value = parent.raw(key);
+  require(value.is_object(), parent.context(key), "an object {centre, rotation, deformation}");
+  JsonObjectReader r(value, parent.context(key));
+  MotionRmse parts;
+  parts.centre = read_measure(r, "centre");
+  parts.rotation = read_measure(r, "rotation");
+  parts.deformation = read_measure(r, "deformation");
+  r.finish();
+  return parts;
+}
+
 std::vector<double> measures_from_json(const Json& values, const JsonContext& where) {
   require(values.is_array(), where, "an array of numbers");
   std::vector<double> out;
@@ -103,6 +122,9 @@ Json to_json(const RolloutMetrics& m) {
     j["rmse_all_constant_velocity"] = nullable_json(m.rmse_all_constant_velocity);
     j["inverted_cells_per_step"] = m.inverted_cells_per_step;
     j["inverted_cells_max"] = m.inverted_cells_max;
+    if (m.rmse_all_parts) j["rmse_all_parts"] = to_json(*m.rmse_all_parts);
+    if (m.rmse_all_parts_constant_velocity)
+      j["rmse_all_parts_constant_velocity"] = to_json(*m.rmse_all_parts_constant_velocity);
   }
   j["seeding"] = m.seeding;
   j["infer_ms_per_step"] = m.infer_ms_per_step;
@@ -148,6 +170,9 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
     m.inverted_cells_per_step =
         measures_from_json(r.raw("inverted_cells_per_step"), r.context("inverted_cells_per_step"));
     m.inverted_cells_max = r.get<double>("inverted_cells_max");
+    m.rmse_all_parts = motion_rmse_from_json(r, "rmse_all_parts");
+    m.rmse_all_parts_constant_velocity =
+        motion_rmse_from_json(r, "rmse_all_parts_constant_velocity");
   }
   m.seeding = r.get<std::string>("seeding");
   m.infer_ms_per_step = r.get<double>("infer_ms_per_step");

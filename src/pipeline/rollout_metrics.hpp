@@ -22,6 +22,13 @@ struct FieldRmse {
   double at(const std::string& field) const;  // NaN when the field is absent
 };
 
+// RMSE-all split by where each body's error lies (pipeline/body_motion_error.hpp): its centre,
+// its rotation about the centre and its deformation; the squares of the three add up to the
+// square of the position RMSE-all.
+struct MotionRmse {
+  double centre = 0.0, rotation = 0.0, deformation = 0.0;
+};
+
 struct DivergedTrajectory {
   int64_t trajectory = 0;
   int64_t frame = 0;  // the first frame with a non-finite prediction
@@ -45,6 +52,9 @@ struct RolloutMetrics {
   std::optional<double> rmse_all_constant_velocity;
   std::vector<double> inverted_cells_per_step;
   double inverted_cells_max = 0.0;
+  // Lagrangian: the position RMSE-all of the model and of constant velocity split into each
+  // body's centre, rotation and deformation (none in files written before the split existed).
+  std::optional<MotionRmse> rmse_all_parts, rmse_all_parts_constant_velocity;
   // Eulerian: the first frame held on the predicted nodes (no model).
   std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
   std::vector<DivergedTrajectory> diverged;

@@ -8,11 +8,13 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <vector>
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
+#include "pipeline/report.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/simulator.hpp"
@@ -88,6 +90,15 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   // The learned gravity and drag beat extrapolating the first velocity, and no cell turns over.
   ASSERT_TRUE(metrics.rmse_all_constant_velocity);
   EXPECT_LT(rmse_all, 0.5 * *metrics.rmse_all_constant_velocity);
+  // RMSE-all split by body: the squares of centre, rotation and deformation add up to its square,
+  // for the model and for the constant-velocity reference.
+  ASSERT_TRUE(metrics.rmse_all_parts && metrics.rmse_all_parts_constant_velocity);
+  const auto squares = [](const MotionRmse& p) {
+    return p.centre * p.centre + p.rotation * p.rotation + p.deformation * p.deformation;
+  };
+  EXPECT_NEAR(squares(*metrics.rmse_all_parts), rmse_all * rmse_all, 1e-5 * rmse_all * rmse_all);
+  const double cv = *metrics.rmse_all_constant_velocity;
+  EXPECT_NEAR(squares(*metrics.rmse_all_parts_constant_velocity), cv * cv, 1e-5 * cv * cv);
   EXPECT_EQ(metrics.inverted_cells_max, 0.0);
   EXPECT_EQ(metrics.inverted_cells_per_step.size(), 28u);
   EXPECT_EQ(metrics.per_step("world_pos").size(), 28u);
@@ -104,6 +115,15 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   const auto truth = predicted.read(0, "target_world_pos", 29);
   EXPECT_EQ(last[0], truth[0]);
   EXPECT_EQ(last[1], truth[1]);
+
+  // The report carries the split beside RMSE-all, with the constant-velocity reference's.
+  ReportRequest report;
+  report.runs = {r.out};
+  report.out = (fs::path(r.out) / "report").string();
+  std::ifstream md(write_report(report));
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| run | RMSE-all | centre | rotation | deformation |"), std::string::npos);
+  EXPECT_NE(text.find("| constant velocity ("), std::string::npos) << text;
 }
 
 // Deliver-1 check of issue 10: on a case whose answer is known (springs along mesh edges), a

@@ -30,6 +30,8 @@ RolloutMetrics lagrangian_metrics() {
   m.rmse_all = one;
   m.rmse_per_step["world_pos"] = {1e-3, 2e-3, std::nan("")};  // a non-finite step
   m.rmse_all_constant_velocity = 0.5;
+  m.rmse_all_parts = MotionRmse{6e-4, 2e-4, 7.75e-4};
+  m.rmse_all_parts_constant_velocity = MotionRmse{0.45, 0.2, 0.1};
   m.inverted_cells_per_step = {0.0, 0.0, 0.25};
   m.inverted_cells_max = 0.25;
   m.diverged = {{1, 7}};
@@ -67,6 +69,16 @@ TEST(RolloutMetricsFile, RoundTripsThroughTheFile) {
   EXPECT_EQ(back.diverged.size(), 1u);
   EXPECT_EQ(back.diverged[0].frame, 7);
   EXPECT_EQ(back.primary_field(), "world_pos");
+  ASSERT_TRUE(back.rmse_all_parts && back.rmse_all_parts_constant_velocity);
+  EXPECT_EQ(back.rmse_all_parts->deformation, 7.75e-4);
+  EXPECT_EQ(back.rmse_all_parts_constant_velocity->centre, 0.45);
+  // Files written before the split existed have no parts and still read.
+  Json older = written;
+  older.erase("rmse_all_parts");
+  older.erase("rmse_all_parts_constant_velocity");
+  const RolloutMetrics old_back = rollout_metrics_from_json(older, "metrics.json");
+  EXPECT_FALSE(old_back.rmse_all_parts || old_back.rmse_all_parts_constant_velocity);
+  EXPECT_EQ(Json::parse(to_json(old_back).dump()), older);
 
   // Eulerian: "kind", the persistence reference, no cells; absent figures are null.
   RolloutMetrics e = m;
@@ -121,6 +133,15 @@ TEST(RolloutMetricsFile, ReaderIsStrictAndNamesFileAndKey) {
   Json eulerian = good;  // kind says Eulerian: the persistence reference is required
   eulerian["kind"] = "eulerian";
   EXPECT_NE(metrics_error(eulerian).find("rmse_1_persistence"), std::string::npos);
+  Json parts = good;
+  parts["rmse_all_parts"].erase("rotation");
+  EXPECT_NE(metrics_error(parts).find("rmse_all_parts.rotation"), std::string::npos)
+      << metrics_error(parts);
+  Json extra_part = good;
+  extra_part["rmse_all_parts_constant_velocity"]["spin"] = 1.0;
+  EXPECT_NE(metrics_error(extra_part).find("rmse_all_parts_constant_velocity.spin"),
+            std::string::npos)
+      << metrics_error(extra_part);
   Json model = good;
   model["model"] = "gcn";
   EXPECT_NE(metrics_error(model).find("'model'"), std::string::npos);
