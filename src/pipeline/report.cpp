@@ -277,6 +277,9 @@ std::string write_report(const ReportRequest& request) {
     if (first.rmse_all_parts_constant_velocity)
       row("constant velocity (" + fs::path(runs.front().dir).filename().string() + "'s data)", cv,
           *first.rmse_all_parts_constant_velocity);
+    if (first.rmse_all_deformation_rigid)
+      md << "| rigid bodies (each body's first shape held) | – | – | – | "
+         << format_number(*first.rmse_all_deformation_rigid, 2, Notation::kScientific) << " |\n";
   }
   md << "\n";
   for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";

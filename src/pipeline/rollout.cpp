@@ -152,7 +152,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   double inertial_sq = 0.0;
   int64_t inertial_count = 0;
   // RMSE-all split into each body's centre, rotation and deformation, model and reference.
-  MotionErrorSum model_parts, inertial_parts;
+  MotionErrorSum model_parts, inertial_parts, rigid_parts;
   rollout_outputs::RolloutTally tally;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
@@ -196,6 +196,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
         inertial_sq += (inertial - truth[f + 1]).pow(2).mean().item<double>();
         ++inertial_count;
         inertial_parts.add(body_motion_error(inertial, truth[f + 1], mesh.body_id));
+        rigid_parts.add(body_motion_error(truth[1], truth[f + 1], mesh.body_id));
       }
       model_parts.add(body_motion_error(next, truth[f + 1], mesh.body_id));
       const auto pos_err = (next - truth[f + 1]).pow(2).mean().item<double>();
@@ -240,6 +241,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
         std::sqrt(inertial_sq / static_cast<double>(inertial_count));
   metrics.rmse_all_parts = model_parts.rmse();
   metrics.rmse_all_parts_constant_velocity = inertial_parts.rmse();
+  if (const auto rigid = rigid_parts.rmse())
+    metrics.rmse_all_deformation_rigid = rigid->deformation;
   std::vector<double>& per_step = metrics.rmse_per_step["world_pos"];
   for (size_t s = 0; s < curves.count.size(); ++s)
     per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));

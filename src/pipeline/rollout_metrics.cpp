@@ -125,6 +125,8 @@ Json to_json(const RolloutMetrics& m) {
     if (m.rmse_all_parts) j["rmse_all_parts"] = to_json(*m.rmse_all_parts);
     if (m.rmse_all_parts_constant_velocity)
       j["rmse_all_parts_constant_velocity"] = to_json(*m.rmse_all_parts_constant_velocity);
+    if (m.rmse_all_deformation_rigid)
+      j["rmse_all_deformation_rigid"] = *m.rmse_all_deformation_rigid;
   }
   j["seeding"] = m.seeding;
   j["infer_ms_per_step"] = m.infer_ms_per_step;
@@ -173,6 +175,8 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
     m.rmse_all_parts = motion_rmse_from_json(r, "rmse_all_parts");
     m.rmse_all_parts_constant_velocity =
         motion_rmse_from_json(r, "rmse_all_parts_constant_velocity");
+    if (r.has("rmse_all_deformation_rigid"))
+      m.rmse_all_deformation_rigid = read_measure(r, "rmse_all_deformation_rigid");
   }
   m.seeding = r.get<std::string>("seeding");
   m.infer_ms_per_step = r.get<double>("infer_ms_per_step");

@@ -55,6 +55,10 @@ struct RolloutMetrics {
   // Lagrangian: the position RMSE-all of the model and of constant velocity split into each
   // body's centre, rotation and deformation (none in files written before the split existed).
   std::optional<MotionRmse> rmse_all_parts, rmse_all_parts_constant_velocity;
+  // The deformation part of holding each body's shape at the first frame (rigid bodies): what a
+  // model of the elastic response must beat (constant velocity's deformation part also counts
+  // the stretch that extrapolating a spinning body's nodes along straight lines makes).
+  std::optional<double> rmse_all_deformation_rigid;
   // Eulerian: the first frame held on the predicted nodes (no model).
   std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
   std::vector<DivergedTrajectory> diverged;

@@ -99,6 +99,11 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NEAR(squares(*metrics.rmse_all_parts), rmse_all * rmse_all, 1e-5 * rmse_all * rmse_all);
   const double cv = *metrics.rmse_all_constant_velocity;
   EXPECT_NEAR(squares(*metrics.rmse_all_parts_constant_velocity), cv * cv, 1e-5 * cv * cv);
+  // The plate falls and drags without turning much: its shape hardly changes, far less than it
+  // moves.
+  ASSERT_TRUE(metrics.rmse_all_deformation_rigid);
+  EXPECT_GE(*metrics.rmse_all_deformation_rigid, 0.0);
+  EXPECT_LT(*metrics.rmse_all_deformation_rigid, 0.1 * cv);
   EXPECT_EQ(metrics.inverted_cells_max, 0.0);
   EXPECT_EQ(metrics.inverted_cells_per_step.size(), 28u);
   EXPECT_EQ(metrics.per_step("world_pos").size(), 28u);
@@ -124,6 +129,7 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("| run | RMSE-all | centre | rotation | deformation |"), std::string::npos);
   EXPECT_NE(text.find("| constant velocity ("), std::string::npos) << text;
+  EXPECT_NE(text.find("| rigid bodies (each body's first shape held) |"), std::string::npos);
 }
 
 // Deliver-1 check of issue 10: on a case whose answer is known (springs along mesh edges), a

@@ -32,6 +32,7 @@ RolloutMetrics lagrangian_metrics() {
   m.rmse_all_constant_velocity = 0.5;
   m.rmse_all_parts = MotionRmse{6e-4, 2e-4, 7.75e-4};
   m.rmse_all_parts_constant_velocity = MotionRmse{0.45, 0.2, 0.1};
+  m.rmse_all_deformation_rigid = 2e-3;
   m.inverted_cells_per_step = {0.0, 0.0, 0.25};
   m.inverted_cells_max = 0.25;
   m.diverged = {{1, 7}};
@@ -72,12 +73,15 @@ TEST(RolloutMetricsFile, RoundTripsThroughTheFile) {
   ASSERT_TRUE(back.rmse_all_parts && back.rmse_all_parts_constant_velocity);
   EXPECT_EQ(back.rmse_all_parts->deformation, 7.75e-4);
   EXPECT_EQ(back.rmse_all_parts_constant_velocity->centre, 0.45);
+  EXPECT_EQ(back.rmse_all_deformation_rigid, 2e-3);
   // Files written before the split existed have no parts and still read.
   Json older = written;
   older.erase("rmse_all_parts");
   older.erase("rmse_all_parts_constant_velocity");
+  older.erase("rmse_all_deformation_rigid");
   const RolloutMetrics old_back = rollout_metrics_from_json(older, "metrics.json");
-  EXPECT_FALSE(old_back.rmse_all_parts || old_back.rmse_all_parts_constant_velocity);
+  EXPECT_FALSE(old_back.rmse_all_parts || old_back.rmse_all_parts_constant_velocity ||
+               old_back.rmse_all_deformation_rigid);
   EXPECT_EQ(Json::parse(to_json(old_back).dump()), older);
 
   // Eulerian: "kind", the persistence reference, no cells; absent figures are null.
