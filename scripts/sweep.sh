@@ -4,7 +4,9 @@
 # trained for the same wall-clock budget on one dataset, rolled out on its test split, and one
 # report whose speed-against-error plot holds every point.
 # Usage: scripts/sweep.sh BUILD_DIR DATA_DIR OUT_DIR   (environment: SWEEP_SECONDS (180),
-# SWEEP_THREADS (0 = all)). DATA_DIR: a disks2d dataset, e.g. runs/demo/data after `make demo`.
+# SWEEP_THREADS (0 = all), SWEEP_POINTS (names of the points to run, default all: bsms-l32 bsms-l64
+# bsms-l128 bsms-l32-3lev bsms-l32-5lev mgn-l32 mgn-l128)). DATA_DIR: a disks2d dataset, e.g.
+# runs/demo/data after `make demo`.
 set -euo pipefail
 
 if [[ $# -ne 3 ]]; then
@@ -25,6 +27,15 @@ mkdir -p "$out_dir"
 # name model latent levels
 points=("bsms-l32 bsms 32 4" "bsms-l64 bsms 64 4" "bsms-l128 bsms 128 4" "bsms-l32-3lev bsms 32 3"
         "bsms-l32-5lev bsms 32 5" "mgn-l32 mgn 32 0" "mgn-l128 mgn 128 0")
+if [[ -n ${SWEEP_POINTS:-} ]]; then
+  chosen=()
+  for want in $SWEEP_POINTS; do
+    found=
+    for point in "${points[@]}"; do [[ ${point%% *} == "$want" ]] && chosen+=("$point") && found=1; done
+    [[ -n $found ]] || { echo "sweep: unknown point '$want' in SWEEP_POINTS" >&2; exit 2; }
+  done
+  points=("${chosen[@]}")
+fi
 runs=()
 for point in "${points[@]}"; do
   read -r name model latent levels <<<"$point"
