@@ -1,0 +1,87 @@
+#!/usr/bin/env python3
+"""Where a rollout's centre error enters (issue 10): for every body and predicted step, the change
+of the error in the body's centre velocity (predicted minus true centroid displacement per frame,
+differenced over consecutive steps: the centre acceleration the model got wrong), attributed to
+what the body was doing in the predicted state the model saw: touching another body (its nodes
+within --gap of another body's), near a wall of the box (--wall), both, or free. Prints each
+class's share of the steps, of the squared injected error and of the true centre acceleration,
+and the error relative to the truth.
+
+Usage: scripts/analysis/centre_error_by_contact.py RUN/rollout/test.h5 [--gap 0.12] [--wall 0.08]
+       [--box 0 1]   (needs python3-h5py and python3-numpy: apt-get install python3-h5py)
+Defaults: the default scene's interaction ranges (3 and 2 background cells of 0.04 m, as the
+momentum groups use) and its unit box.
+"""
+import argparse
+import sys
+
+try:
+    import h5py
+    import numpy as np
+except ImportError as missing:
+    print(f"centre_error_by_contact: {missing} (apt-get install python3-h5py python3-numpy)",
+          file=sys.stderr)
+    sys.exit(2)
+
+
+def fail(message):
+    print(message, file=sys.stderr)
+    sys.exit(2)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("rollout", help="a rollout file: RUN/rollout/SPLIT.h5")
+    ap.add_argument("--gap", type=float, default=0.12, help="body-body contact range (m)")
+    ap.add_argument("--wall", type=float, default=0.08, help="wall contact range (m)")
+    ap.add_argument("--box", type=float, nargs=2, default=[0.0, 1.0], help="box min and max")
+    a = ap.parse_args()
+    try:
+        trajectories = h5py.File(a.rollout, "r")["trajectories"]
+    except (OSError, KeyError) as e:
+        fail(f"{a.rollout}: not a bsms rollout file ({e})")
+    classes = ("contact", "wall", "both", "free")
+    err = dict.fromkeys(classes, 0.0)
+    true = dict.fromkeys(classes, 0.0)
+    steps = dict.fromkeys(classes, 0)
+    lo, hi = a.box
+    for name in trajectories:
+        g = trajectories[name]
+        if "target_world_pos" not in g:
+            fail(f"{a.rollout}: trajectory {name} has no target_world_pos (not a rollout file)")
+        body = g["body_id"][:]
+        p = g["world_pos"][:].astype(np.float64)
+        q = g["target_world_pos"][:].astype(np.float64)
+        ids = np.unique(body)
+        cp = np.stack([p[:, body == b].mean(1) for b in ids], 1)  # [F, B, dim]
+        cq = np.stack([q[:, body == b].mean(1) for b in ids], 1)
+        vp, vq = cp[1:] - cp[:-1], cq[1:] - cq[:-1]
+        ev = vp - vq
+        for t in range(2, p.shape[0] - 1):  # the model's step from frame t to t + 1
+            injected = ev[t] - ev[t - 1]
+            accel = vq[t] - vq[t - 1]
+            for j, b in enumerate(ids):
+                x = p[t, body == b]
+                gap = min((np.linalg.norm(x[:, None] - p[t, body == o][None], axis=2).min()
+                           for o in ids if o != b), default=np.inf)
+                near_wall = min((x - lo).min(), (hi - x).min()) < a.wall
+                touching = gap < a.gap
+                c = "both" if touching and near_wall else "contact" if touching else \
+                    "wall" if near_wall else "free"
+                err[c] += float((injected[j] ** 2).sum())
+                true[c] += float((accel[j] ** 2).sum())
+                steps[c] += 1
+    total_err, total_true, n = sum(err.values()), sum(true.values()), sum(steps.values())
+    if n == 0 or total_err == 0:
+        fail(f"{a.rollout}: no predicted steps with an error to attribute")
+    print("| class | steps | share of injected centre error² | share of true centre acceleration² "
+          "| error / true (RMS) |")
+    print("|---|---|---|---|---|")
+    for c in classes:
+        ratio = np.sqrt(err[c] / true[c]) if true[c] > 0 else float("nan")
+        print(f"| {c} | {steps[c] / n:.1%} | {err[c] / total_err:.1%} | {true[c] / total_true:.1%} "
+              f"| {ratio:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
