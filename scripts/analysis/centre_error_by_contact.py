@@ -5,7 +5,7 @@ differenced over consecutive steps: the centre acceleration the model got wrong)
 what the body was doing in the predicted state the model saw: touching another body (its nodes
 within --gap of another body's), near a wall of the box (--wall), both, or free. Prints each
 class's share of the steps, of the squared injected error and of the true centre acceleration,
-and the error relative to the truth.
+and the error relative to the truth; for the wall steps, the share along the wall's normal.
 
 Usage: scripts/analysis/centre_error_by_contact.py RUN/rollout/test.h5 [--gap 0.12] [--wall 0.08]
        [--box 0 1]   (needs python3-h5py and python3-numpy: apt-get install python3-h5py)
@@ -44,6 +44,7 @@ def main():
     err = dict.fromkeys(classes, 0.0)
     true = dict.fromkeys(classes, 0.0)
     steps = dict.fromkeys(classes, 0)
+    normal_err = tangential_err = 0.0  # wall steps: along the nearest wall's normal, and across
     lo, hi = a.box
     for name in trajectories:
         g = trajectories[name]
@@ -69,6 +70,10 @@ def main():
                 c = "both" if touching and near_wall else "contact" if touching else \
                     "wall" if near_wall else "free"
                 err[c] += float((injected[j] ** 2).sum())
+                if c == "wall":
+                    axis = int(np.argmin(np.minimum(x.min(0) - lo, hi - x.max(0))))
+                    normal_err += float(injected[j][axis] ** 2)
+                    tangential_err += float((injected[j] ** 2).sum() - injected[j][axis] ** 2)
                 true[c] += float((accel[j] ** 2).sum())
                 steps[c] += 1
     total_err, total_true, n = sum(err.values()), sum(true.values()), sum(steps.values())
@@ -81,6 +86,9 @@ def main():
         ratio = np.sqrt(err[c] / true[c]) if true[c] > 0 else float("nan")
         print(f"| {c} | {steps[c] / n:.1%} | {err[c] / total_err:.1%} | {true[c] / total_true:.1%} "
               f"| {ratio:.2f} |")
+    if normal_err + tangential_err > 0:
+        print(f"\nwall steps: {normal_err / (normal_err + tangential_err):.1%} of the injected "
+              "centre error² is along the nearest wall's normal (the bounce)")
 
 
 if __name__ == "__main__":
