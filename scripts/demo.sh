@@ -8,15 +8,11 @@
 # tuned on) override the defaults below)
 set -euo pipefail
 
-if [[ $# -ne 2 ]]; then
-  echo "usage: $0 BUILD_DIR OUT_DIR" >&2
-  exit 2
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+need_args "BUILD_DIR OUT_DIR" 2 2 "$@"
 build_dir=$1
 out_dir=$2
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bsms=$build_dir/bsms
-[[ -x $bsms ]] || { echo "demo: $bsms not found; build first (make build)" >&2; exit 2; }
+find_bsms demo "$build_dir"
 trajectories=${DEMO_TRAJECTORIES:-100}
 train_seconds=${DEMO_TRAIN_SECONDS:-360}
 threads=${DEMO_THREADS:-0}

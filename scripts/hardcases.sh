@@ -14,16 +14,12 @@
 #   override the defaults below)
 set -euo pipefail
 
-if [[ $# -lt 2 || $# -gt 3 ]]; then
-  echo "usage: $0 BUILD_DIR OUT_DIR [MODELS_DIR]" >&2
-  exit 2
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+need_args "BUILD_DIR OUT_DIR [MODELS_DIR]" 2 3 "$@"
 build_dir=$1
 out_dir=$2
 models=${3:-runs/demo}
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bsms=$build_dir/bsms
-[[ -x $bsms ]] || { echo "hardcases: $bsms not found; build first (make build)" >&2; exit 2; }
+find_bsms hardcases "$build_dir"
 threads=${HARDCASES_THREADS:-0}
 count=${HARDCASES_TRAJECTORIES:-3}
 seeding_count=${HARDCASES_SEEDING_TRAJECTORIES:-20}

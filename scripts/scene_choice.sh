@@ -9,15 +9,11 @@
 # SCENE_THREADS (0 = all), SCENE_SEED (0), SCENE_VARIANTS (all: "flip apic pic95 dt02")).
 set -euo pipefail
 
-if [[ $# -ne 2 ]]; then
-  echo "usage: $0 BUILD_DIR OUT_DIR" >&2
-  exit 2
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+need_args "BUILD_DIR OUT_DIR" 2 2 "$@"
 build_dir=$1
 out_dir=$2
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bsms=$build_dir/bsms
-[[ -x $bsms ]] || { echo "scene_choice: $bsms not found; build first (make build)" >&2; exit 2; }
+find_bsms scene_choice "$build_dir"
 command -v jq >/dev/null || { echo "scene_choice: jq not found (make deps installs it)" >&2; exit 2; }
 steps=${SCENE_STEPS:-12000}
 threads=${SCENE_THREADS:-0}

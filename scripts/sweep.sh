@@ -9,16 +9,12 @@
 # runs/demo/data after `make demo`.
 set -euo pipefail
 
-if [[ $# -ne 3 ]]; then
-  echo "usage: $0 BUILD_DIR DATA_DIR OUT_DIR" >&2
-  exit 2
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+need_args "BUILD_DIR DATA_DIR OUT_DIR" 3 3 "$@"
 build_dir=$1
 data=$2
 out_dir=$3
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bsms=$build_dir/bsms
-[[ -x $bsms ]] || { echo "sweep: $bsms not found; build first (make build)" >&2; exit 2; }
+find_bsms sweep "$build_dir"
 [[ -f $data/train.h5 ]] || { echo "sweep: $data/train.h5 not found (run make demo first)" >&2; exit 2; }
 seconds=${SWEEP_SECONDS:-180}
 threads=${SWEEP_THREADS:-0}

@@ -8,15 +8,11 @@
 # LONG_BSMS_MP (2: BSMS message-passing blocks per level, model.mp_per_level))
 set -euo pipefail
 
-if [[ $# -ne 2 ]]; then
-  echo "usage: $0 BUILD_DIR OUT_DIR" >&2
-  exit 2
-fi
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+need_args "BUILD_DIR OUT_DIR" 2 2 "$@"
 build_dir=$1
 out_dir=$2
-root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-bsms=$build_dir/bsms
-[[ -x $bsms ]] || { echo "train-long: $bsms not found; build first (make build)" >&2; exit 2; }
+find_bsms train-long "$build_dir"
 trajectories=${LONG_TRAJECTORIES:-400}
 train_seconds=${LONG_TRAIN_SECONDS:-3600}
 threads=${LONG_THREADS:-0}

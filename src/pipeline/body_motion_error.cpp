@@ -34,21 +34,23 @@ BodyMotionError body_motion_error(const torch::Tensor& predicted, const torch::T
       body[i] = index.emplace(body_id[i], static_cast<int>(index.size())).first->second;
   const int bodies = std::max<int>(1, static_cast<int>(index.size()));
 
-  std::vector<Eigen::VectorXd> p_sum(bodies, Eigen::VectorXd::Zero(dim)),
-      q_sum(bodies, Eigen::VectorXd::Zero(dim));
+  // At most 3 × 3: fixed-capacity storage, no allocation per node.
+  using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1>;
+  using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>;
+  std::vector<Vec> p_sum(bodies, Vec::Zero(dim)), q_sum(bodies, Vec::Zero(dim));
   std::vector<int64_t> count(bodies, 0);
   for (int64_t i = 0; i < n; ++i) {
     p_sum[body[i]] += P.row(i).transpose();
     q_sum[body[i]] += Q.row(i).transpose();
     ++count[body[i]];
   }
-  std::vector<Eigen::MatrixXd> h(bodies, Eigen::MatrixXd::Zero(dim, dim));
+  std::vector<Mat> h(bodies, Mat::Zero(dim, dim));
   std::vector<double> about_centre(bodies, 0.0);  // Σ|p'_i - q'_i|²
   for (int64_t i = 0; i < n; ++i) {
     const int b = body[i];
     const double c = static_cast<double>(count[b]);
-    const Eigen::VectorXd pc = P.row(i).transpose() - p_sum[b] / c;
-    const Eigen::VectorXd qc = Q.row(i).transpose() - q_sum[b] / c;
+    const Vec pc = P.row(i).transpose() - p_sum[b] / c;
+    const Vec qc = Q.row(i).transpose() - q_sum[b] / c;
     h[b] += pc * qc.transpose();
     about_centre[b] += (pc - qc).squaredNorm();
   }
@@ -59,8 +61,7 @@ BodyMotionError body_motion_error(const torch::Tensor& predicted, const torch::T
     centre += c * ((p_sum[b] - q_sum[b]) / c).squaredNorm();
     // max over rotations of tr(R H) (Kabsch): the singular values with the last one signed by
     // det H, so that no reflection is counted as a rotation.
-    Eigen::JacobiSVD<Eigen::MatrixXd> svd(h[b]);
-    const Eigen::VectorXd s = svd.singularValues();
+    const Vec s = Eigen::JacobiSVD<Mat>(h[b]).singularValues();
     double best = s.head(dim - 1).sum();
     const double det = h[b].determinant();
     best += (det < 0 ? -1.0 : 1.0) * s(dim - 1);
