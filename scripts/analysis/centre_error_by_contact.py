@@ -7,8 +7,14 @@ within --gap of another body's), near a wall of the box (--wall), both, or free.
 class's share of the steps, of the squared injected error and of the true centre acceleration,
 and the error relative to the truth; for the wall steps, the share along the wall's normal.
 
+With --one-step, the file is a teacher-forced rollout (bsms rollout RUN --one-step: every step
+from the true frames): the error is then each step's own (predicted minus true centre after one
+step from the truth), classed by the true state, so it measures the model on the states it was
+trained on, without the drift of its own rollout.
+
 Usage: scripts/analysis/centre_error_by_contact.py RUN/rollout/test.h5 [--gap 0.12] [--wall 0.08]
-       [--box 0 1]   (needs python3-h5py and python3-numpy: apt-get install python3-h5py)
+       [--box 0 1] [--one-step]   (needs python3-h5py and python3-numpy: apt-get install
+       python3-h5py)
 Defaults: the default scene's interaction ranges (3 and 2 background cells of 0.04 m, as the
 momentum groups use) and its unit box.
 """
@@ -35,6 +41,8 @@ def main():
     ap.add_argument("--gap", type=float, default=0.12, help="body-body contact range (m)")
     ap.add_argument("--wall", type=float, default=0.08, help="wall contact range (m)")
     ap.add_argument("--box", type=float, nargs=2, default=[0.0, 1.0], help="box min and max")
+    ap.add_argument("--one-step", action="store_true",
+                    help="the file holds one-step predictions (bsms rollout --one-step)")
     a = ap.parse_args()
     try:
         trajectories = h5py.File(a.rollout, "r")["trajectories"]
@@ -58,12 +66,14 @@ def main():
         cq = np.stack([q[:, body == b].mean(1) for b in ids], 1)
         vp, vq = cp[1:] - cp[:-1], cq[1:] - cq[:-1]
         ev = vp - vq
-        for t in range(2, p.shape[0] - 1):  # the model's step from frame t to t + 1
-            injected = ev[t] - ev[t - 1]
+        seen = q if a.one_step else p  # the state the model stepped from
+        for t in range(2 if not a.one_step else 1, p.shape[0] - 1):  # its step from t to t + 1
+            # Rollout: the change of the centre-velocity error; one step: the step's own error.
+            injected = cp[t + 1] - cq[t + 1] if a.one_step else ev[t] - ev[t - 1]
             accel = vq[t] - vq[t - 1]
             for j, b in enumerate(ids):
-                x = p[t, body == b]
-                gap = min((np.linalg.norm(x[:, None] - p[t, body == o][None], axis=2).min()
+                x = seen[t, body == b]
+                gap = min((np.linalg.norm(x[:, None] - seen[t, body == o][None], axis=2).min()
                            for o in ids if o != b), default=np.inf)
                 near_wall = min((x - lo).min(), (hi - x).min()) < a.wall
                 touching = gap < a.gap

@@ -1,5 +1,5 @@
 // bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
-// [--steps S] [--threads T]
+// [--steps S] [--one-step] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -24,6 +24,9 @@ BSMS_COMMAND(
           ->check(CLI::NonNegativeNumber);
       sub.add_option("--steps", r->max_steps, "at most S predicted steps each (0 = all)")
           ->check(CLI::NonNegativeNumber);
+      sub.add_flag("--one-step", r->one_step,
+                   "teacher forcing: every step from the true frames (one-step errors along "
+                   "each trajectory; default output RUN/rollout_one_step; Lagrangian runs)");
       bsms::cli::add_threads_option(sub, r->threads);
       sub.footer(
           "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"

@@ -45,6 +45,7 @@ Json to_json(const LagrangianSpec& s) {
   if (s.first_order) j["output"] = "velocity";
   if (s.kinematic_input) j["kinematic_input"] = true;
   if (!s.velocity_input) j["velocity_input"] = false;
+  if (s.history > 1) j["history"] = s.history;
   if (s.has_walls()) {
     Json lo = Json::array(), hi = Json::array();
     for (int a = 0; a < s.dim; ++a) {
@@ -118,6 +119,8 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   s.first_order = output == "velocity";
   s.kinematic_input = r.opt<bool>("kinematic_input", false);
   s.velocity_input = r.opt<bool>("velocity_input", true);
+  s.history = r.opt<int>("history", 1);
+  require(s.history >= 1 && s.history <= 10, r.context("history"), "in 1..10");
   if (r.has("walls")) {
     JsonObjectReader w(r.raw("walls"), r.context("walls"));
     s.wall_radius = w.get<double>("radius");
@@ -393,15 +396,39 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
       predicted[i] = is_predicted_node(mesh.node_type[i], spec_.public_layout);
     auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
     torch::Tensor cur = s.cur;
+    torch::Tensor walk;    // [N, (history - 1) * dim]: the older velocities' noise
     if (!noise.empty()) {  // training: keep what was added, for the target's correction
       torch::Tensor added = torch::zeros_like(cur);
       if (g < noise.size() && noise[g].defined()) {
-        added = noise[g] * mask.unsqueeze(1).to(torch::kFloat32);
+        const auto on = mask.unsqueeze(1).to(torch::kFloat32);
+        added = noise[g].narrow(1, 0, spec_.dim) * on;
         cur = cur + added;
+        const int64_t older = noise[g].size(1) / spec_.dim - 1;
+        if (older > 0 && spec_.history > 1) {
+          const int64_t k = std::min<int64_t>(older, spec_.history - 1);
+          const auto steps =
+              noise[g].narrow(1, spec_.dim, k * spec_.dim).reshape({n, k, spec_.dim});
+          walk = (added.unsqueeze(1) -
+                  steps.cumsum(1) * on.unsqueeze(2) / std::sqrt(static_cast<double>(spec_.history)))
+                     .reshape({n, k * spec_.dim});
+        }
       }
       noises.push_back(added);
     }
     auto velocity = cur - s.prev;
+    if (spec_.history > 1) {  // the velocities before, from the positions without noise
+      std::vector<torch::Tensor> velocities = {velocity};
+      torch::Tensor newer = s.cur, at = s.prev;
+      for (int k = 0; k + 1 < spec_.history; ++k) {
+        const torch::Tensor older =
+            k < static_cast<int>(s.older.size()) ? s.older[k] : 2 * at - newer;
+        velocities.push_back(at - older);
+        newer = at;
+        at = older;
+      }
+      velocity = torch::cat(velocities, 1);
+      if (walk.defined()) velocity.narrow(1, spec_.dim, walk.size(1)).add_(walk);
+    }
     if (!spec_.velocity_input)
       velocity = torch::where(mask.unsqueeze(1), torch::zeros_like(velocity), velocity);
     auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)

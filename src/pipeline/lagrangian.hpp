@@ -33,6 +33,8 @@ struct LagrangianSpec {
   // MeshGraphNets' DeformingPlate: a quasi-static body's state is its shape, and training noise
   // on a velocity far smaller than the noise only hides it); prescribed nodes keep theirs.
   bool velocity_input = true;
+  // Velocities in the input: x_t - x_{t-1} and the history - 1 before it (FrameState::older).
+  int history = 1;
   int num_node_types = 4;
   double position_scale = 1.0;  // m; positions are divided by it (mean mesh edge length)
   double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
@@ -56,7 +58,8 @@ struct LagrangianSpec {
 
   bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
   int input_size() const {
-    return dim + num_node_types + (has_walls() ? 2 * dim : 0) + (kinematic_input ? dim : 0);
+    return history * dim + num_node_types + (has_walls() ? 2 * dim : 0) +
+           (kinematic_input ? dim : 0);
   }
   int mesh_dimension() const { return mesh_dim > 0 ? mesh_dim : dim; }
   int output_size() const { return dim; }
@@ -107,6 +110,9 @@ struct FrameState {
   // [N, dim] positions at t+1: read only on prescribed nodes, for spec.kinematic_input (the
   // truth in training, the prescribed path in a rollout).
   torch::Tensor next;
+  // Positions before t-1 for spec.history > 1: older[0] at t-2, older[1] at t-3, ... Missing
+  // ones (a trajectory's first frames) are filled at constant velocity.
+  std::vector<torch::Tensor> older;
 };
 
 // A block-diagonal batch of states, ready for the model.
@@ -147,6 +153,9 @@ class LagrangianAdapter {
   const LagrangianSpec& spec() const { return spec_; }
 
   // `noise[g]` (optional, [N_g, dim]) is added to graph g's current positions on predicted nodes.
+  // With spec.history > 1 it may be [N_g, history * dim]: the columns after the first dim are
+  // unit draws for the older velocities' noise, a random walk back in time (as GNS's): velocity
+  // t-k gets the current position's noise minus k increments of std |noise| / sqrt(history).
   Batch make_batch(const std::vector<FrameState>& states,
                    const std::vector<torch::Tensor>& noise = {}) const;
   // Target acceleration (first order: velocity) for the batch from next positions [N, dim]

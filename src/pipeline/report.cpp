@@ -71,6 +71,9 @@ std::string write_report(const ReportRequest& request) {
     RunData r;
     r.dir = dir;
     r.metrics = read_rollout_metrics(metrics.string());
+    if (r.metrics.one_step)
+      throw InputError(metrics.string() + ": holds one-step errors (bsms rollout --one-step), " +
+                       "not a rollout: run bsms rollout " + dir + " for the report");
     r.label = fs::path(dir).filename().string() + " (" + r.metrics.model + ")";
     r.log = read_train_log((fs::path(dir) / "train_log.csv").string());
     r.loss_window = training_loss_window(r.log.size());

@@ -179,7 +179,11 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
     for (int64_t f = 1; f + 1 < frames; ++f) {
       Stopwatch clock;
-      FrameState state{&graphs, &mesh, pred[f - 1], pred[f], truth[f + 1]};
+      // The state the model sees: its own frames, or the truth with teacher forcing.
+      auto seen = [&](int64_t k) { return request.one_step ? truth[k] : pred[k]; };
+      FrameState state{&graphs, &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
+      for (int64_t k = f - 2; k >= 0 && k > f - 1 - spec.history; --k)
+        state.older.push_back(seen(k));
       Batch batch = adapter.make_batch({state});
       const auto accel = simulator->predict(batch);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
@@ -191,17 +195,23 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       pred.push_back(next);
       {
         const auto mask = batch.mask.unsqueeze(1);
-        const auto inertial = torch::where(
-            mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]), truth[f + 1]);
+        // With teacher forcing the references start from the true frames too: one step at the
+        // last true velocity, and each body's shape of frame f held.
+        const auto inertial =
+            request.one_step
+                ? torch::where(mask, 2 * truth[f] - truth[f - 1], truth[f + 1])
+                : torch::where(mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]),
+                               truth[f + 1]);
         inertial_sq += (inertial - truth[f + 1]).pow(2).mean().item<double>();
         ++inertial_count;
         inertial_parts.add(body_motion_error(inertial, truth[f + 1], mesh.body_id));
-        rigid_parts.add(body_motion_error(truth[1], truth[f + 1], mesh.body_id));
+        rigid_parts.add(
+            body_motion_error(request.one_step ? truth[f] : truth[1], truth[f + 1], mesh.body_id));
       }
       model_parts.add(body_motion_error(next, truth[f + 1], mesh.body_id));
       const auto pos_err = (next - truth[f + 1]).pow(2).mean().item<double>();
       const auto vel_err =
-          ((next - pred[f]) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
+          ((next - seen(f)) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
       curves.add(static_cast<size_t>(f - 1), pos_err, vel_err,
                  inverted_fraction(cells, reference_sign, next, spec.dim));
     }
@@ -233,6 +243,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.split = request.split;
   metrics.data = data.location();
   metrics.num_trajectories = count;
+  metrics.one_step = request.one_step;
   metrics.rmse_1 = rmse_over(curves, 1);
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());
@@ -262,7 +273,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   }
   write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet) {
-    std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all(world_pos) "
+    std::cerr << "bsms rollout: " << count << " trajectories, "
+              << (request.one_step ? "one-step (teacher forcing) " : "") << "RMSE-all(world_pos) "
               << (metrics.rmse_all ? metrics.rmse_all->at("world_pos") : 0.0);
     if (metrics.rmse_all_parts)
       std::cerr << " (by body: centre " << metrics.rmse_all_parts->centre << ", rotation "

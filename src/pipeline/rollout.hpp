@@ -19,6 +19,10 @@ struct RolloutRequest {
   int64_t max_steps = 0;         // 0: whole trajectories
   int threads = 0;
   bool quiet = false;
+  // Teacher forcing (Lagrangian runs): every step starts from the true frames, so the errors are
+  // one-step errors along the trajectory, not a rollout's. Writes to RUN/rollout_one_step by
+  // default and marks its metrics "one_step" (bsms report refuses them).
+  bool one_step = false;
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").

@@ -23,6 +23,10 @@ namespace fs = std::filesystem;
 RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
                                 const EulerianSpec& spec, int levels) {
   const std::string run = request.run;
+  if (request.one_step)
+    throw InputError(run +
+                     ": --one-step (teacher forcing) is for Lagrangian runs; this one is "
+                     "Eulerian (velocity)");
   const int threads = configure_threads(set_num_threads(request.threads));
   auto simulator = std::make_shared<LearnedSimulator>(model_shape(spec), config.model, levels);
   load_checkpoint(run_checkpoint_path(run), *simulator, nullptr);

@@ -111,6 +111,7 @@ Json to_json(const RolloutMetrics& m) {
   j["split"] = m.split;
   j["data"] = m.data;
   j["num_trajectories"] = m.num_trajectories;
+  if (m.one_step) j["one_step"] = true;
   j["rmse_1"] = to_json(m.rmse_1);
   j["rmse_50"] = to_json(m.rmse_50);
   j["rmse_all"] = to_json(m.rmse_all);
@@ -160,6 +161,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.split = r.get<std::string>("split");
   m.data = r.get<std::string>("data");
   m.num_trajectories = r.get<int64_t>("num_trajectories");
+  m.one_step = r.opt<bool>("one_step", false);
   m.rmse_1 = field_rmse_from_json(r, "rmse_1");
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");

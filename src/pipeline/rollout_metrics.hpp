@@ -41,6 +41,9 @@ struct RolloutMetrics {
   std::string data;     // the dataset rolled out
   std::string seeding;  // of the multilevel graphs
   int64_t num_trajectories = 0;
+  // Teacher forcing (bsms rollout --one-step): every step from the true frames, so the RMSE
+  // figures are one-step errors and the references one step from the truth. "one_step": true.
+  bool one_step = false;
   int levels = 1;
   int threads = 0;
   // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the

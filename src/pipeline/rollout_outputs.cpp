@@ -14,7 +14,8 @@ namespace bsms::rollout_outputs {
 namespace fs = std::filesystem;
 
 fs::path out_dir(const RolloutRequest& request) {
-  return request.out.empty() ? fs::path(request.run) / "rollout" : fs::path(request.out);
+  if (!request.out.empty()) return fs::path(request.out);
+  return fs::path(request.run) / (request.one_step ? "rollout_one_step" : "rollout");
 }
 
 void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,

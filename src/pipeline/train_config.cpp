@@ -102,6 +102,12 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     require(c.features.pushforward_target == "position" ||
                 c.features.pushforward_target == "acceleration",
             f.context("pushforward_target"), "\"position\" or \"acceleration\"");
+    c.features.history = f.opt<int>("history", c.features.history);
+    require(c.features.history >= 1 && c.features.history <= 10, f.context("history"),
+            "in 1..10 (velocities the model sees: 1 = x_t - x_{t-1} only)");
+    c.features.history_noise = f.opt<std::string>("history_noise", c.features.history_noise);
+    require(c.features.history_noise == "off" || c.features.history_noise == "walk",
+            f.context("history_noise"), "\"off\" or \"walk\"");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -175,6 +181,9 @@ Json to_json(const TrainConfig& c) {
     f["pushforward_from"] = c.features.pushforward_from;
     f["pushforward_target"] = c.features.pushforward_target;
   }
+  if (c.features.history != defaults.history) f["history"] = c.features.history;
+  if (c.features.history_noise != defaults.history_noise)
+    f["history_noise"] = c.features.history_noise;
   return j;
 }
 

@@ -65,6 +65,13 @@ struct FeatureConfig {
   // corrected like noise, with noise_gamma) or "acceleration" (the frame's true target, as if the
   // state had not drifted: a rigid drift the state cannot reveal is not asked to be undone).
   std::string pushforward_target = "position";
+  // Velocities the model sees (Lagrangian data, acceleration output): 1 = x_t - x_{t-1} only;
+  // k > 1 adds the k - 1 before it (x_{t-1} - x_{t-2}, ...; Sanchez-Gonzalez et al.'s GNS uses
+  // 5). Frames before a trajectory's first are filled at constant velocity.
+  int history = 1;
+  // Training noise on those older velocities: "off" (the true ones; only x_t is noisy) or "walk"
+  // (GNS's random walk back from x_t's noise, steps of noise_std / sqrt(history)).
+  std::string history_noise = "off";
 };
 
 struct OptimizerConfig {

@@ -40,20 +40,26 @@ struct LoadedSample {
 };
 
 // Sample `ref` (frame t) with the state at frames t-1-before and t-before (the truth; before > 0
-// for pushforward, which rolls it on to t) and the true next frame t+1.
+// for pushforward, which rolls it on to t) and the true next frame t+1; with `history` > 1 also
+// the history - 1 frames before t-1-before that the trajectory has (FrameState::older).
 LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef& ref,
-                         int64_t before = 0) {
+                         int64_t before = 0, int history = 1) {
   const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
   const int64_t n = mesh.num_nodes();
   const int dim = data.dim();
-  auto frames = data.read(ref.trajectory, position_field(data), ref.frame - 1 - before, before + 3);
+  const int64_t first = ref.frame - 1 - before;
+  const int64_t extra = std::min<int64_t>(history - 1, first);
+  auto frames = data.read(ref.trajectory, position_field(data), first - extra, extra + before + 3);
+  const auto all =
+      torch::from_blob(frames.data(), {extra + before + 3, n, dim}, torch::kFloat32).clone();
   LoadedSample s;
-  s.truth = torch::from_blob(frames.data(), {before + 3, n, dim}, torch::kFloat32).clone();
+  s.truth = all.narrow(0, extra, before + 3);
   s.state.graphs = &store.get(mesh);
   s.state.mesh = &mesh;
   s.state.prev = s.truth[0];
   s.state.cur = s.truth[1];
   s.state.next = s.truth[2];
+  for (int64_t k = extra - 1; k >= 0; --k) s.state.older.push_back(all[k]);
   s.next = s.truth[before + 2];
   return s;
 }
@@ -64,7 +70,8 @@ LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Datas
                                    GraphStore& store, const SampleRef& ref, int unroll,
                                    const Predictor& predictor) {
   const int64_t u = std::min<int64_t>(unroll, ref.frame - 1);
-  LoadedSample s = load_sample(data, store, ref, u);
+  const int history = adapter.spec().history;
+  LoadedSample s = load_sample(data, store, ref, u, history);
   const auto& x = s.truth;  // x[i] is frame t-1-u+i: x[u+1] is t
   for (int64_t i = 0; i < u; ++i) {
     const Batch b = adapter.make_batch({s.state});
@@ -74,6 +81,10 @@ LoadedSample pushed_forward_sample(const LagrangianAdapter& adapter, const Datas
                            std::to_string(ref.trajectory) + " reached a non-finite position at " +
                            "frame " + std::to_string(ref.frame - u + i + 1) + " (sample frame " +
                            std::to_string(ref.frame) + ")");
+    if (history > 1) {
+      s.state.older.insert(s.state.older.begin(), s.state.prev);
+      if (static_cast<int>(s.state.older.size()) > history - 1) s.state.older.pop_back();
+    }
     s.state.prev = s.state.cur;
     s.state.cur = predicted;
     s.state.next = x[i + 3];
@@ -141,6 +152,10 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
       throw InputError("features.pushforward: " + std::to_string(config.features.pushforward) +
                        " needs Lagrangian data (world_pos); " + train_data.location() +
                        " is Eulerian (velocity): set it to 0");
+    if (config.features.history > 1)
+      throw InputError("features.history: " + std::to_string(config.features.history) +
+                       " needs Lagrangian data (world_pos); " + train_data.location() +
+                       " is Eulerian (velocity): set it to 1");
   }
   const bool public_layout = train_data.is_public_layout();
   const int mesh_dim = train_data.mesh(0).dim;
@@ -199,6 +214,11 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
                       (config.features.kinematic_input == "auto" && public_layout);
   s.velocity_input = config.features.velocity_input == "on" ||
                      (config.features.velocity_input == "auto" && !s.first_order);
+  if (config.features.history > 1 && !s.velocity_input)
+    throw InputError("features.history: " + std::to_string(config.features.history) +
+                     " needs the velocity input, which is off here (features.velocity_input, or "
+                     "output velocity): set history to 1");
+  s.history = config.features.history;
   if (config.features.contact_radius < 0) {
     // Public data states the radius of its world edges (DeformingPlate's collision_radius).
     if (train_data.collision_radius() > 0)
@@ -264,16 +284,19 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
   }
   const LagrangianAdapter adapter(r.spec);
   const int unroll = noisy && predictor ? config.features.pushforward : 0;
+  // Columns of noise per coordinate: x_t's, and the older velocities' random walk (history_noise).
+  const int64_t noise_width = config.features.history_noise == "walk" ? r.spec.history : 1;
   std::vector<FrameState> states;
   std::vector<torch::Tensor> nexts, noise, drifts, truth_prevs, truth_curs;
   for (size_t k = 0; k < refs.size(); ++k) {
     LoadedSample s = unroll > 0
                          ? pushed_forward_sample(adapter, data, store, refs[k], unroll, *predictor)
-                         : load_sample(data, store, refs[k]);
+                         : load_sample(data, store, refs[k], 0, r.spec.history);
     states.push_back(s.state);
     nexts.push_back(s.next);
     if (noisy)
-      noise.push_back(torch::randn(s.state.cur.sizes(), (*generators)[k], torch::kFloat32) *
+      noise.push_back(torch::randn({s.state.cur.size(0), s.state.cur.size(1) * noise_width},
+                                   (*generators)[k], torch::kFloat32) *
                       config.features.noise_std);
     if (unroll > 0) {  // the truth at t-1 and t, and how far the rollout drifted from it
       const int64_t frames = s.truth.size(0);

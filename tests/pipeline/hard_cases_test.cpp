@@ -137,7 +137,7 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   x.index_put_({0, 0}, 0.05);  // 0.05 from the left wall: 0.5
   x.index_put_({0, 1}, 0.97);  // 0.03 below the top: 0.3
   LagrangianAdapter adapter(s);
-  FrameState state{&graphs, &mesh, x, x, {}};
+  FrameState state{&graphs, &mesh, x, x, {}, {}};
   graphs.hierarchy = MultilevelTensors();
   const auto inputs = adapter.make_batch({state}).inputs;
   ASSERT_EQ(inputs.size(1), 10);

@@ -126,7 +126,7 @@ TEST(NoiseGamma, TargetsKeepPositionOrVelocity) {
   LagrangianSpec spec;
   LagrangianAdapter adapter(spec);
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}};
+  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}, {}};
   const auto noise = 1e-3 * torch::randn({n, 2});
   const Batch b = adapter.make_batch({state}, {noise});
   const auto mask = b.mask.unsqueeze(1);
@@ -152,7 +152,7 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   ASSERT_EQ(spec.input_size(), 2 + 4 + 2);
   LagrangianAdapter adapter(spec);
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], frames[2]};
+  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], frames[2], {}};
   const auto noise = 1e-3 * torch::randn({n, 2});
   const Batch b = adapter.make_batch({state}, {noise});
   const auto target = adapter.target(b, frames[2], 1.0);
@@ -172,7 +172,7 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   }
   EXPECT_GT(prescribed, 0);
   // Without the next frame the kinematic input cannot be formed: a logic error, not garbage.
-  FrameState blind{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}};
+  FrameState blind{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}, {}};
   EXPECT_THROW(adapter.make_batch({blind}), std::logic_error);
   // Round trip of the resolved features: old runs (no keys) read as second order.
   const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");
@@ -183,6 +183,26 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   EXPECT_FALSE(old_back.first_order);
   EXPECT_FALSE(old_back.kinematic_input);
   EXPECT_FALSE(to_json(old).contains("output"));
+}
+
+TEST(History, WidensTheInputAndRoundTrips) {
+  LagrangianSpec spec;
+  const int one = spec.input_size();
+  spec.history = 4;
+  EXPECT_EQ(spec.input_size(), one + 3 * spec.dim);
+  const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");
+  EXPECT_EQ(back.history, 4);
+  // Runs trained before the key read as one velocity; a bad value names the key.
+  EXPECT_FALSE(to_json(LagrangianSpec{}).contains("history"));
+  EXPECT_EQ(lagrangian_spec_from_json(to_json(LagrangianSpec{}), "f.json").history, 1);
+  Json bad = to_json(spec);
+  bad["history"] = 0;
+  try {
+    lagrangian_spec_from_json(bad, "f.json");
+    ADD_FAILURE() << "history 0 was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("history"), std::string::npos) << e.what();
+  }
 }
 
 TEST(LearningRate, WarmsUpThenDecaysWithProgress) {

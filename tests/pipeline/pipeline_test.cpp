@@ -130,6 +130,32 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NE(text.find("| run | RMSE-all | centre | rotation | deformation |"), std::string::npos);
   EXPECT_NE(text.find("| constant velocity ("), std::string::npos) << text;
   EXPECT_NE(text.find("| rigid bodies (each body's first shape held) |"), std::string::npos);
+
+  // Teacher forcing (--one-step): every step from the true frames. Its first step is the
+  // rollout's; later ones do not carry the drift, and the references step from the truth too
+  // (the first step of both references is the rollout's).
+  q.one_step = true;
+  const RolloutMetrics one = rollout(q);
+  EXPECT_TRUE(one.one_step);
+  EXPECT_FALSE(metrics.one_step);
+  const fs::path one_dir = fs::path(r.out) / "rollout_one_step";
+  EXPECT_TRUE(read_rollout_metrics((one_dir / "metrics.json").string()).one_step);
+  ASSERT_EQ(one.per_step("world_pos").size(), 28u);
+  EXPECT_DOUBLE_EQ(one.per_step("world_pos")[0], metrics.per_step("world_pos")[0]);
+  EXPECT_LT(one.rmse_all->at("world_pos"), rmse_all);
+  ASSERT_TRUE(one.rmse_all_constant_velocity);
+  EXPECT_LT(*one.rmse_all_constant_velocity, cv);
+  // Without the drift the last step's error stays far below the rollout's.
+  EXPECT_LT(one.per_step("world_pos")[27], 0.5 * metrics.per_step("world_pos")[27]);
+  // A report of a run whose rollout folder holds one-step errors is refused with the file named.
+  q.out = (fs::path(r.out) / "rollout").string();
+  rollout(q);
+  try {
+    write_report(report);
+    ADD_FAILURE() << "a one-step metrics file made a report";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("one-step"), std::string::npos) << e.what();
+  }
 }
 
 // Deliver-1 check of issue 10: on a case whose answer is known (springs along mesh edges), a
@@ -371,6 +397,110 @@ TEST_F(Pushforward, TrainsAndIsAnInputErrorOutOfRange) {
       ADD_FAILURE() << bad << ": expected an InputError";
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("features.pushforward"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// Velocity history (features.history): the inputs carry x_t - x_{t-1} and the velocities before
+// it from the true frames, filled at constant velocity before frame 0; training noise is on x_t
+// only, or (history_noise "walk") walks back from it in steps of noise_std / sqrt(history).
+TEST_F(Pushforward, HistoryInputsAreTheVelocitiesBefore) {
+  config_.features.pushforward = 0;
+  config_.features.history = 3;
+  const double sigma = config_.features.noise_std;
+  config_.features.noise_std = 0.0;
+  resolved_ = resolve_model(config_, *train_);
+  ASSERT_EQ(resolved_.spec.history, 3);
+  ASSERT_EQ(resolved_.spec.input_size(),
+            3 * 2 + resolved_.spec.num_node_types + (resolved_.spec.has_walls() ? 4 : 0));
+  for (const SampleRef ref : {SampleRef{2, 7}, SampleRef{4, 2}, SampleRef{1, 1}}) {
+    const int64_t t = ref.frame;
+    const auto x = frames(ref.trajectory);
+    const TrainBatch b = batch({ref}, nullptr);
+    // x_{t-k} for k >= 0, extended before frame 0 at the first velocity.
+    auto at = [&](int64_t f) { return f >= 0 ? x[f] : x[0] + f * (x[1] - x[0]); };
+    EXPECT_TRUE(torch::allclose(b.batch.inputs.slice(1, 0, 2), at(t) + b.batch.noise - at(t - 1),
+                                1e-6, 1e-7))
+        << t;
+    EXPECT_TRUE(torch::allclose(b.batch.inputs.slice(1, 2, 4), at(t - 1) - at(t - 2), 1e-6, 1e-7))
+        << t;
+    EXPECT_TRUE(torch::allclose(b.batch.inputs.slice(1, 4, 6), at(t - 2) - at(t - 3), 1e-6, 1e-7))
+        << t;
+  }
+  // With noise: velocity t gets the position noise n, velocity t-1 n - d1, t-2 n - d1 - d2, with
+  // d ~ N(0, sigma^2 / 3) on the solved nodes; pinned nodes keep the truth.
+  config_.features.noise_std = sigma;
+  {
+    const SampleRef ref{3, 6};
+    config_.features.noise_std = 0.0;
+    const TrainBatch clean = batch({ref}, nullptr);
+    config_.features.noise_std = sigma;
+    const TrainBatch only_now = batch({ref}, nullptr);  // history_noise "off"
+    const auto now = only_now.batch.noise.index({only_now.batch.mask});
+    const auto off = (only_now.batch.inputs - clean.batch.inputs).index({only_now.batch.mask});
+    EXPECT_TRUE(torch::allclose(off.slice(1, 0, 2), now, 1e-5, 1e-6));
+    EXPECT_LT(off.slice(1, 2, 6).abs().max().item<double>(), 1e-6);
+    EXPECT_GT(now.abs().max().item<double>(), 0.1 * sigma);
+    config_.features.history_noise = "walk";
+    const TrainBatch noisy = batch({ref}, nullptr);
+    config_.features.history_noise = "off";
+    const auto mask = noisy.batch.mask;
+    const auto n = noisy.batch.noise.index({mask});
+    const auto dv = (noisy.batch.inputs - clean.batch.inputs).slice(1, 0, 6).index({mask});
+    EXPECT_TRUE(torch::allclose(dv.slice(1, 0, 2), n, 1e-5, 1e-6));
+    const auto d1 = dv.slice(1, 0, 2) - dv.slice(1, 2, 4),
+               d2 = dv.slice(1, 2, 4) - dv.slice(1, 4, 6);
+    for (const auto& d : {d1, d2}) {
+      const double rms = d.square().mean().sqrt().item<double>();
+      EXPECT_GT(rms, 0.6 * sigma / std::sqrt(3.0)) << rms;
+      EXPECT_LT(rms, 1.4 * sigma / std::sqrt(3.0)) << rms;
+    }
+    const auto pinned = ~mask;
+    ASSERT_GT(pinned.sum().item<int64_t>(), 0);
+    EXPECT_TRUE(
+        torch::equal(noisy.batch.inputs.index({pinned}), clean.batch.inputs.index({pinned})));
+  }
+  // Pushed forward by a model that predicts nothing, the history is the model's own: from
+  // x_{t-u-1} .. x_{t-u}, u steps at the velocity v = x_{t-u} - x_{t-u-1} on the solved nodes.
+  config_.features.pushforward = 3;
+  config_.features.noise_std = 0.0;
+  const Predictor zero = [](const Batch& b) { return torch::zeros_like(b.cur); };
+  const SampleRef ref{2, 7};
+  const auto x = frames(ref.trajectory);
+  const TrainBatch pushed = batch({ref}, &zero);
+  const auto mask = pushed.batch.mask.unsqueeze(1);
+  const auto v = x[4] - x[3];
+  EXPECT_TRUE(torch::allclose(pushed.batch.inputs.slice(1, 2, 4),
+                              torch::where(mask, v, x[6] - x[5]), 1e-6, 1e-7));
+  EXPECT_TRUE(torch::allclose(pushed.batch.inputs.slice(1, 4, 6),
+                              torch::where(mask, v, x[5] - x[4]), 1e-6, 1e-7));
+  // A run trains and rolls out with it; out of range, or without a velocity input, it is an
+  // InputError naming the key.
+  const fs::path dir = fresh_dir("history_" + std::to_string(::getpid()));
+  TrainRequest r;
+  r.config_path = write_config(dir, dir_ / "data", "bsms", 40);
+  r.out = (dir / "run").string();
+  r.threads = 2;
+  r.quiet = true;
+  r.overrides = {"features.history=2"};
+  EXPECT_EQ(train(r).steps, 40);
+  EXPECT_EQ(load_json_file(run_config_path(r.out))["features_resolved"]["history"].get<int>(), 2);
+  RolloutRequest q;
+  q.run = r.out;
+  q.quiet = true;
+  const RolloutMetrics metrics = rollout(q);
+  EXPECT_TRUE(std::isfinite(RolloutMetrics::rmse(metrics.rmse_all, "world_pos")));
+  r.out = (dir / "bad").string();
+  for (const std::vector<std::string>& bad :
+       std::vector<std::vector<std::string>>{{"features.history=0"},
+                                             {"features.history=11"},
+                                             {"features.history=2", "features.output=velocity"}}) {
+    r.overrides = bad;
+    try {
+      train(r);
+      ADD_FAILURE() << bad.back() << ": expected an InputError";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("features.history"), std::string::npos) << e.what();
     }
   }
 }

@@ -116,6 +116,13 @@ TEST(PublicData, CylinderFlowTrainsAndRollsOutEulerian) {
   EXPECT_EQ(m["rmse_per_step"]["velocity"].size(), 23u);  // 24 frames: 23 predicted steps
   expect_boundary_follows_truth(o.run, "velocity", true);
   expect_boundary_follows_truth(o.run, "pressure", true);
+  // Teacher forcing is for Lagrangian runs: an Eulerian one says so and writes nothing.
+  RolloutRequest forced;
+  forced.run = o.run;
+  forced.quiet = true;
+  forced.one_step = true;
+  EXPECT_THROW(rollout(forced), InputError);
+  EXPECT_FALSE(fs::exists(fs::path(o.run) / "rollout_one_step"));
 }
 
 TEST(PublicData, AirfoilHasDensityAndPressure) {

@@ -74,6 +74,12 @@ TEST(RolloutMetricsFile, RoundTripsThroughTheFile) {
   EXPECT_EQ(back.rmse_all_parts->deformation, 7.75e-4);
   EXPECT_EQ(back.rmse_all_parts_constant_velocity->centre, 0.45);
   EXPECT_EQ(back.rmse_all_deformation_rigid, 2e-3);
+  EXPECT_FALSE(written.contains("one_step"));  // a rollout's file, as before the key existed
+  RolloutMetrics forced = m;
+  forced.one_step = true;
+  const Json forced_json = Json::parse(to_json(forced).dump());
+  EXPECT_TRUE(forced_json["one_step"].get<bool>());
+  EXPECT_TRUE(rollout_metrics_from_json(forced_json, "metrics.json").one_step);
   // Files written before the split existed have no parts and still read.
   Json older = written;
   older.erase("rmse_all_parts");

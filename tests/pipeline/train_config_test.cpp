@@ -62,6 +62,15 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 0}})")
                 .find("model.mp_per_level"),
             std::string::npos);
+  EXPECT_NE(
+      error_of(R"({"data": "d", "steps": 5, "features": {"history": 0}})").find("features.history"),
+      std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"history_noise": "gns"}})")
+                .find("features.history_noise"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"history": 3,
+    "history_noise": "walk"}})"),
+            "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 3}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 0.1,
