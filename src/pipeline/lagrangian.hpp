@@ -154,8 +154,9 @@ class LagrangianAdapter {
 
   // `noise[g]` (optional, [N_g, dim]) is added to graph g's current positions on predicted nodes.
   // With spec.history > 1 it may be [N_g, history * dim]: the columns after the first dim are
-  // unit draws for the older velocities' noise, a random walk back in time (as GNS's): velocity
-  // t-k gets the current position's noise minus k increments of std |noise| / sqrt(history).
+  // draws like the first ones, for the older velocities' noise, a random walk back in time (as
+  // GNS's): velocity t-k gets the current position's noise minus k of those draws, each divided
+  // by sqrt(history).
   Batch make_batch(const std::vector<FrameState>& states,
                    const std::vector<torch::Tensor>& noise = {}) const;
   // Target acceleration (first order: velocity) for the batch from next positions [N, dim]

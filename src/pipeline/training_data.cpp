@@ -218,6 +218,10 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
     throw InputError("features.history: " + std::to_string(config.features.history) +
                      " needs the velocity input, which is off here (features.velocity_input, or "
                      "output velocity): set history to 1");
+  if (config.features.history_noise == "walk" && config.features.history == 1)
+    throw InputError(
+        "features.history_noise: \"walk\" puts noise on the velocities before x_t - x_{t-1}, "
+        "and features.history is 1 (none): set history > 1 or history_noise \"off\"");
   s.history = config.features.history;
   if (config.features.contact_radius < 0) {
     // Public data states the radius of its world edges (DeformingPlate's collision_radius).

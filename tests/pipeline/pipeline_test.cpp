@@ -494,7 +494,8 @@ TEST_F(Pushforward, HistoryInputsAreTheVelocitiesBefore) {
   for (const std::vector<std::string>& bad :
        std::vector<std::vector<std::string>>{{"features.history=0"},
                                              {"features.history=11"},
-                                             {"features.history=2", "features.output=velocity"}}) {
+                                             {"features.history=2", "features.output=velocity"},
+                                             {"features.history_noise=walk"}}) {
     r.overrides = bad;
     try {
       train(r);
