@@ -19,43 +19,28 @@ Defaults: the default scene's interaction ranges (3 and 2 background cells of 0.
 momentum groups use) and its unit box.
 """
 import argparse
-import sys
 
-try:
-    import h5py
-    import numpy as np
-except ImportError as missing:
-    print(f"centre_error_by_contact: {missing} (apt-get install python3-h5py python3-numpy)",
-          file=sys.stderr)
-    sys.exit(2)
-
-
-def fail(message):
-    print(message, file=sys.stderr)
-    sys.exit(2)
+# body_contacts checks for h5py and numpy first, with a one-line message.
+from body_contacts import add_range_options, check_ranges, fail, gap_to_others, np, trajectories
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("rollout", help="a rollout file: RUN/rollout/SPLIT.h5")
-    ap.add_argument("--gap", type=float, default=0.12, help="body-body contact range (m)")
-    ap.add_argument("--wall", type=float, default=0.08, help="wall contact range (m)")
-    ap.add_argument("--box", type=float, nargs=2, default=[0.0, 1.0], help="box min and max")
+    add_range_options(ap)
     ap.add_argument("--one-step", action="store_true",
                     help="the file holds one-step predictions (bsms rollout --one-step)")
     a = ap.parse_args()
-    try:
-        trajectories = h5py.File(a.rollout, "r")["trajectories"]
-    except (OSError, KeyError) as e:
-        fail(f"{a.rollout}: not a bsms rollout file ({e})")
+    check_ranges(a)
+    rollout = trajectories(a.rollout, "rollout")
     classes = ("contact", "wall", "both", "free")
     err = dict.fromkeys(classes, 0.0)
     true = dict.fromkeys(classes, 0.0)
     steps = dict.fromkeys(classes, 0)
     normal_err = tangential_err = 0.0  # wall steps: along the nearest wall's normal, and across
     lo, hi = a.box
-    for name in trajectories:
-        g = trajectories[name]
+    for name in rollout:
+        g = rollout[name]
         if "target_world_pos" not in g:
             fail(f"{a.rollout}: trajectory {name} has no target_world_pos (not a rollout file)")
         body = g["body_id"][:]
@@ -73,8 +58,7 @@ def main():
             accel = vq[t] - vq[t - 1]
             for j, b in enumerate(ids):
                 x = seen[t, body == b]
-                gap = min((np.linalg.norm(x[:, None] - seen[t, body == o][None], axis=2).min()
-                           for o in ids if o != b), default=np.inf)
+                gap = gap_to_others(seen[t], body, b, ids)
                 near_wall = min((x - lo).min(), (hi - x).min()) < a.wall
                 touching = gap < a.gap
                 c = "both" if touching and near_wall else "contact" if touching else \

@@ -14,15 +14,9 @@ Usage: scripts/analysis/wall_bounce_information.py DATA/train.h5 DATA/test.h5 [-
 Defaults: the default scene's interaction ranges (as centre_error_by_contact.py) and unit box.
 """
 import argparse
-import sys
 
-try:
-    import h5py
-    import numpy as np
-except ImportError as missing:
-    print(f"wall_bounce_information: {missing} (apt-get install python3-h5py python3-numpy)",
-          file=sys.stderr)
-    sys.exit(2)
+# body_contacts checks for h5py and numpy first, with a one-line message.
+from body_contacts import add_range_options, check_ranges, fail, gap_to_others, np, trajectories
 
 # Feature sets: name, and the summaries each uses (suffix k = frame t-k).
 FEATURE_SETS = (
@@ -34,21 +28,13 @@ FEATURE_SETS = (
 )
 
 
-def fail(message):
-    print(message, file=sys.stderr)
-    sys.exit(2)
-
-
 def wall_events(path, a):
     """One row of summaries per (trajectory, body, frame) at a wall and away from other bodies."""
-    try:
-        trajectories = h5py.File(path, "r")["trajectories"]
-    except (OSError, KeyError) as e:
-        fail(f"{path}: not a bsms dataset file ({e})")
+    data = trajectories(path, "dataset")
     lo, hi = a.box
     rows = []
-    for name in trajectories:
-        g = trajectories[name]
+    for name in data:
+        g = data[name]
         if "world_pos" not in g or "body_id" not in g:
             fail(f"{path}: trajectory {name} has no world_pos or body_id (not Lagrangian bodies)")
         p = g["world_pos"][:].astype(np.float64)
@@ -60,8 +46,7 @@ def wall_events(path, a):
             for b in ids:
                 m = body == b
                 x = p[t, m]
-                gap = min((np.linalg.norm(x[:, None] - p[t, body == o][None], axis=2).min()
-                           for o in ids if o != b), default=np.inf)
+                gap = gap_to_others(p[t], body, b, ids)
                 sides = np.concatenate([x.min(0) - lo, hi - x.max(0)])
                 k = int(np.argmin(sides))
                 if sides[k] >= a.wall or gap < a.gap:
@@ -92,12 +77,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("fit", help="dataset split to fit on: DATA/train.h5")
     ap.add_argument("score", help="dataset split to score on: DATA/test.h5")
-    ap.add_argument("--gap", type=float, default=0.12, help="body-body contact range (m)")
-    ap.add_argument("--wall", type=float, default=0.08, help="wall contact range (m)")
-    ap.add_argument("--box", type=float, nargs=2, default=[0.0, 1.0], help="box min and max")
+    add_range_options(ap)
     a = ap.parse_args()
-    if not (a.gap > 0 and a.wall > 0 and a.box[1] > a.box[0]):
-        fail("wall_bounce_information: --gap and --wall must be > 0 and --box MIN MAX with MAX > MIN")
+    check_ranges(a)
     fit, score = wall_events(a.fit, a), wall_events(a.score, a)
     y, y_score = np.array([r["acc"] for r in fit]), np.array([r["acc"] for r in score])
     print(f"wall events: {len(fit)} to fit ({a.fit}), {len(score)} to score ({a.score}); "

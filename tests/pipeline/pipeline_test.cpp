@@ -306,6 +306,30 @@ class Pushforward : public PipelineTest {
     const int64_t n = train_->mesh(trajectory).num_nodes();
     return torch::tensor(x).reshape({train_->num_frames(trajectory), n, 2});
   }
+  // A quiet 2-thread training request on the fixture's data, in a fresh folder named by `tag`.
+  TrainRequest small_run(const std::string& tag, int64_t steps) const {
+    const fs::path dir = fresh_dir(tag + "_" + std::to_string(::getpid()));
+    TrainRequest r;
+    r.config_path = write_config(dir, dir_ / "data", "bsms", steps);
+    r.out = (dir / "run").string();
+    r.threads = 2;
+    r.quiet = true;
+    return r;
+  }
+  // Each set of overrides makes `bsms train` an InputError whose message names `key`.
+  static void expect_refused(TrainRequest r, const std::vector<std::vector<std::string>>& sets,
+                             const std::string& key) {
+    r.out = (fs::path(r.out).parent_path() / "bad").string();
+    for (const auto& overrides : sets) {
+      r.overrides = overrides;
+      try {
+        train(r);
+        ADD_FAILURE() << overrides.back() << ": expected an InputError";
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+      }
+    }
+  }
   TrainConfig config_;
   std::unique_ptr<Dataset> train_;
   ResolvedModel resolved_;
@@ -365,12 +389,7 @@ TEST_F(Pushforward, APerfectModelLeavesTheSampleAsItWas) {
 }
 
 TEST_F(Pushforward, TrainsAndIsAnInputErrorOutOfRange) {
-  const fs::path dir = fresh_dir("pushforward_" + std::to_string(::getpid()));
-  TrainRequest r;
-  r.config_path = write_config(dir, dir_ / "data", "bsms", 120);
-  r.out = (dir / "run").string();
-  r.threads = 2;
-  r.quiet = true;
+  TrainRequest r = small_run("pushforward", 120);
   r.overrides = {"features.pushforward=2", "features.pushforward_from=40"};
   const TrainResult result = train(r);
   EXPECT_EQ(result.steps, 120);
@@ -380,7 +399,7 @@ TEST_F(Pushforward, TrainsAndIsAnInputErrorOutOfRange) {
   EXPECT_EQ(saved["features"]["pushforward_from"].get<int>(), 40);
   // The same run without it: identical losses up to step 39, different from step 40 on.
   const std::string pushed_run = r.out;
-  r.out = (dir / "plain").string();
+  r.out = (fs::path(pushed_run).parent_path() / "plain").string();
   r.overrides = {};
   train(r);
   const auto pushed = logged_losses(pushed_run), plain = logged_losses(r.out);
@@ -388,17 +407,10 @@ TEST_F(Pushforward, TrainsAndIsAnInputErrorOutOfRange) {
   ASSERT_EQ(plain.size(), 120u);
   for (size_t i = 0; i < 39; ++i) EXPECT_EQ(pushed[i], plain[i]) << "step " << i + 1;
   EXPECT_NE(pushed[39], plain[39]);
-  r.out = (dir / "bad").string();
-  for (const char* bad :
-       {"features.pushforward=-1", "features.pushforward=101", "features.pushforward_from=-5"}) {
-    r.overrides = {bad};
-    try {
-      train(r);
-      ADD_FAILURE() << bad << ": expected an InputError";
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("features.pushforward"), std::string::npos) << e.what();
-    }
-  }
+  expect_refused(
+      r,
+      {{"features.pushforward=-1"}, {"features.pushforward=101"}, {"features.pushforward_from=-5"}},
+      "features.pushforward");
 }
 
 // Velocity history (features.history): the inputs carry x_t - x_{t-1} and the velocities before
@@ -476,12 +488,7 @@ TEST_F(Pushforward, HistoryInputsAreTheVelocitiesBefore) {
                               torch::where(mask, v, x[5] - x[4]), 1e-6, 1e-7));
   // A run trains and rolls out with it; out of range, or without a velocity input, it is an
   // InputError naming the key.
-  const fs::path dir = fresh_dir("history_" + std::to_string(::getpid()));
-  TrainRequest r;
-  r.config_path = write_config(dir, dir_ / "data", "bsms", 40);
-  r.out = (dir / "run").string();
-  r.threads = 2;
-  r.quiet = true;
+  TrainRequest r = small_run("history", 40);
   r.overrides = {"features.history=2"};
   EXPECT_EQ(train(r).steps, 40);
   EXPECT_EQ(load_json_file(run_config_path(r.out))["features_resolved"]["history"].get<int>(), 2);
@@ -490,20 +497,12 @@ TEST_F(Pushforward, HistoryInputsAreTheVelocitiesBefore) {
   q.quiet = true;
   const RolloutMetrics metrics = rollout(q);
   EXPECT_TRUE(std::isfinite(RolloutMetrics::rmse(metrics.rmse_all, "world_pos")));
-  r.out = (dir / "bad").string();
-  for (const std::vector<std::string>& bad :
-       std::vector<std::vector<std::string>>{{"features.history=0"},
-                                             {"features.history=11"},
-                                             {"features.history=2", "features.output=velocity"},
-                                             {"features.history_noise=walk"}}) {
-    r.overrides = bad;
-    try {
-      train(r);
-      ADD_FAILURE() << bad.back() << ": expected an InputError";
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("features.history"), std::string::npos) << e.what();
-    }
-  }
+  expect_refused(r,
+                 {{"features.history=0"},
+                  {"features.history=11"},
+                  {"features.history=2", "features.output=velocity"},
+                  {"features.history_noise=walk"}},
+                 "features.history");
 }
 
 TEST_F(PipelineTest, BadConfigsAndCheckpointsAreInputErrors) {
