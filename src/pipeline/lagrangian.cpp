@@ -30,6 +30,16 @@ Json scene_background(const std::string& scene_json, Json* scene_out = nullptr) 
   return background.is_object() ? background : Json::object();
 }
 
+// Every boundary of a scene is "slip" or "roller": its walls push only along their normals.
+bool slip_walls_only(const Json& scene) {
+  for (const auto& b : scene.value("boundaries", Json::array())) {
+    const std::string type =
+        b.is_object() && b.contains("type") && b["type"].is_string() ? b["type"] : "";
+    if (type != "slip" && type != "roller") return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 Json to_json(const LagrangianSpec& s) {
@@ -54,8 +64,10 @@ Json to_json(const LagrangianSpec& s) {
     }
     j["walls"] = {{"lo", lo}, {"hi", hi}, {"radius", s.wall_radius}};
   }
-  if (s.has_momentum())
+  if (s.has_momentum()) {
     j["momentum"] = {{"radius", s.momentum_radius}, {"wall_range", s.momentum_wall_range}};
+    if (s.momentum_slip_walls) j["momentum"]["slip_walls"] = true;
+  }
   return j;
 }
 
@@ -92,6 +104,12 @@ LagrangianSpec walls_for_scene(LagrangianSpec spec, const std::string& scene_jso
   if (!spec.has_walls()) return spec;
   const double radius = spec.wall_radius;
   resolve_walls(spec, scene_json, radius);
+  // The tangential part of the projection holds only where every wall still slips.
+  if (spec.momentum_slip_walls) {
+    Json scene = Json::object();
+    scene_background(scene_json, &scene);
+    spec.momentum_slip_walls = slip_walls_only(scene);
+  }
   if (!spec.has_walls()) {
     spec.wall_lo.assign(spec.dim, std::nan(""));
     spec.wall_hi.assign(spec.dim, std::nan(""));
@@ -139,6 +157,7 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
     JsonObjectReader m(r.raw("momentum"), r.context("momentum"));
     s.momentum_radius = m.get<double>("radius");
     s.momentum_wall_range = m.get<double>("wall_range");
+    s.momentum_slip_walls = m.opt<bool>("slip_walls", false);
     require(s.momentum_radius > 0, m.context("radius"), "> 0");
     require(s.momentum_wall_range >= 0, m.context("wall_range"), ">= 0");
     m.finish();
@@ -150,8 +169,9 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   return s;
 }
 
-std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json) {
+std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json, bool at_walls) {
   spec.momentum_radius = spec.momentum_wall_range = 0.0;
+  spec.momentum_slip_walls = false;
   Json scene = Json::object();
   const Json background = scene_background(scene_json, &scene);
   if (scene.contains("gravity")) {
@@ -165,14 +185,18 @@ std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json
     return "the scene has no axis-aligned box background with an element_size";
   if (!spec.has_walls()) return "the model has no wall inputs";
   const std::set<std::string> sides = {"left", "right", "bottom", "top", "back", "front"};
-  for (const auto& b : scene.value("boundaries", Json::array()))
+  bool slip = at_walls;
+  for (const auto& b : scene.value("boundaries", Json::array())) {
     if (!b.is_object() || !b.contains("group") || !b["group"].is_string() ||
         sides.count(b["group"].get<std::string>()) == 0)
       return "the scene has a boundary that is not a side of its box";
+  }
+  slip = slip && slip_walls_only(scene);
   const double h = background["element_size"].get<double>();
   if (!(h > 0)) return "the scene's element_size is not positive";
   spec.momentum_radius = 3.0 * h;
   spec.momentum_wall_range = 2.0 * h;
+  spec.momentum_slip_walls = slip;
   return "";
 }
 
@@ -198,19 +222,21 @@ std::vector<float> lumped_masses(const TrajectoryMesh& mesh) {
   return mass;
 }
 
-std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
-                                     const torch::Tensor& x, int64_t* num_groups) {
+MomentumGroups momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
+                               const torch::Tensor& x) {
   const int dim = spec.dim;
   const int64_t n = mesh.num_nodes();
   const auto xc = x.to(torch::kFloat64).contiguous();
   const double* p = xc.data_ptr<double>();
-  // Bodies: their nodes, bounding boxes, and whether any node is kinematic or near a wall.
+  // Bodies: their nodes, bounding boxes, whether any node is kinematic, and the axes of the
+  // walls they are near.
   std::map<int32_t, int> body_index;
   for (int64_t i = 0; i < n; ++i) body_index.emplace(mesh.body_id.empty() ? 0 : mesh.body_id[i], 0);
   int nb = 0;
   for (auto& [id, index] : body_index) index = nb++;
   std::vector<std::vector<int64_t>> nodes(nb);
   std::vector<char> bound(nb, 0);
+  std::vector<uint32_t> walled(nb, 0);  // bit a: near a wall of axis a
   std::vector<double> lo(static_cast<size_t>(nb) * dim, 1e300), hi(lo.size(), -1e300);
   for (int64_t i = 0; i < n; ++i) {
     const int b = body_index[mesh.body_id.empty() ? 0 : mesh.body_id[i]];
@@ -223,7 +249,7 @@ std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const Trajector
       hi[b * dim + a] = std::max(hi[b * dim + a], v);
       if (spec.has_walls() && (v - spec.wall_lo[a] < spec.momentum_wall_range ||
                                spec.wall_hi[a] - v < spec.momentum_wall_range))
-        bound[b] = 1;  // NaN walls compare false: no wall on that side
+        walled[b] |= 1u << a;  // NaN walls compare false: no wall on that side
     }
   }
   // Union of bodies closer than momentum_radius (bounding boxes first, then node pairs).
@@ -255,17 +281,29 @@ std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const Trajector
       if (close) parent[root(a)] = root(b);
     }
   }
+  // A group keeps the linear momentum along the axes none of its bodies has a wall of (with slip
+  // walls; otherwise only a group near no wall counts) and the angular one when near no wall.
   std::vector<char> group_bound(nb, 0);
-  for (int b = 0; b < nb; ++b) group_bound[root(b)] |= bound[b];
+  std::vector<uint32_t> group_walled(nb, 0);
+  for (int b = 0; b < nb; ++b) {
+    group_bound[root(b)] |= bound[b];
+    group_walled[root(b)] |= walled[b];
+  }
+  const uint32_t all_axes = (1u << dim) - 1;
+  MomentumGroups out;
   std::vector<int64_t> id_of_root(nb, -1);
-  int64_t count = 0;
+  for (int b = 0; b < nb; ++b) {
+    const uint32_t w = group_walled[b];
+    const bool kept = !group_bound[b] && (w == 0 || (spec.momentum_slip_walls && w != all_axes));
+    if (root(b) != b || !kept) continue;
+    id_of_root[b] = out.count++;
+    for (int a = 0; a < dim; ++a) out.conserved.push_back((w >> a) & 1u ? 0.0f : 1.0f);
+    out.conserved.push_back(w == 0 ? 1.0f : 0.0f);
+  }
+  out.group.assign(n, -1);
   for (int b = 0; b < nb; ++b)
-    if (root(b) == b && !group_bound[b]) id_of_root[b] = count++;
-  std::vector<int64_t> group(n, -1);
-  for (int b = 0; b < nb; ++b)
-    for (int64_t i : nodes[b]) group[i] = id_of_root[root(b)];
-  *num_groups = count;
-  return group;
+    for (int64_t i : nodes[b]) out.group[i] = id_of_root[root(b)];
+  return out;
 }
 
 torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
@@ -277,9 +315,15 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
   auto sum = [&](const torch::Tensor& v) {                            // [N, k] -> [G, k], per group
     return torch::zeros({groups, v.size(1)}, v.options()).index_add(0, g, v);
   };
+  // Which momenta each group keeps, [G, dim + 1] (all of them without `conserved`).
+  const auto kept = batch.conserved.defined() ? batch.conserved.to(accel.dtype())
+                                              : torch::ones({groups, dim + 1}, accel.options());
   const auto total = sum(m).clamp_min(1e-30);  // [G, 1]
-  auto out = accel - (sum(m * accel) / total).index_select(0, g) * inside;
+  const auto mean = sum(m * accel) / total * kept.slice(1, 0, dim);
+  auto out = accel - mean.index_select(0, g) * inside;
   if (dim < 2) return out;
+  // The angular part: only groups that keep it (kept.select(1, dim) is 1) lose it.
+  const auto spin = kept.select(1, dim).unsqueeze(1);  // [G, 1]
   const auto x = batch.cur.to(accel.dtype());
   const auto r = (x - (sum(m * x) / total).index_select(0, g)) * inside;  // [N, dim]
   if (dim == 2) {
@@ -287,7 +331,7 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
     const auto torque =
         sum(m * (rx * out.select(1, 1).unsqueeze(1) - ry * out.select(1, 0).unsqueeze(1)));
     const auto inertia = sum(m * r.square().sum(1, true)).clamp_min(1e-30);
-    const auto alpha = (torque / inertia).index_select(0, g);  // [N, 1]
+    const auto alpha = (torque / inertia * spin).index_select(0, g);  // [N, 1]
     return out - alpha * torch::cat({-ry, rx}, 1);
   }
   // 3-D: inertia tensor sum m (|r|^2 I - r r^T), alpha = I^-1 torque, a -= alpha x r.
@@ -297,7 +341,7 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
   const auto inertia = sum(m * (r.square().sum(1, true) * eye - rr)).reshape({groups, 3, 3});
   // A degenerate group (one node, or nodes on a line) has a singular inertia tensor: the
   // pseudo-inverse leaves the rotation about that axis alone (its torque is ~0 there anyway).
-  const auto alpha = torch::linalg::pinv(inertia).matmul(torque.unsqueeze(2)).squeeze(2);
+  const auto alpha = torch::linalg::pinv(inertia).matmul(torque.unsqueeze(2)).squeeze(2) * spin;
   return out - torch::cross(alpha.index_select(0, g), r, 1);
 }
 
@@ -381,7 +425,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
                                     const std::vector<torch::Tensor>& noise) const {
   Batch b;
   std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises, groups,
-      masses;
+      masses, conserved;
   std::vector<MultilevelTensors> graphs;
   graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
@@ -461,12 +505,14 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
     curs.push_back(cur);
     prevs.push_back(s.prev);
     if (spec_.has_momentum()) {
-      int64_t count = 0;
-      std::vector<int64_t> group = momentum_groups(spec_, mesh, cur, &count);
-      for (auto& v : group)
+      MomentumGroups found = momentum_groups(spec_, mesh, cur);
+      for (auto& v : found.group)
         if (v >= 0) v += b.num_groups;
-      b.num_groups += count;
-      groups.push_back(torch::from_blob(group.data(), {n}, torch::kInt64).clone());
+      b.num_groups += found.count;
+      groups.push_back(torch::from_blob(found.group.data(), {n}, torch::kInt64).clone());
+      conserved.push_back(
+          torch::from_blob(found.conserved.data(), {found.count, spec_.dim + 1}, torch::kFloat32)
+              .clone());
       std::vector<float> mass = lumped_masses(mesh);
       masses.push_back(torch::from_blob(mass.data(), {n}, torch::kFloat32).clone());
     }
@@ -499,6 +545,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   if (!groups.empty()) {
     b.group = torch::cat(groups, 0);
     b.mass = torch::cat(masses, 0);
+    b.conserved = torch::cat(conserved, 0);
   }
   if (graphs.size() == 1) {
     b.graph = std::move(graphs[0]);

@@ -55,6 +55,10 @@ struct LagrangianSpec {
   // the momentum-conserving subspace (project_momentum). 0 = off (runs trained before it).
   double momentum_radius = 0.0;
   double momentum_wall_range = 0.0;
+  // The walls are slip or roller (they push only along their normal): a group near walls of
+  // some axes still keeps its linear momentum along the others (false: such a group is left
+  // alone, as in runs trained before it).
+  bool momentum_slip_walls = false;
 
   bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
   int input_size() const {
@@ -78,8 +82,10 @@ void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json,
 // or a scene) has no gravity, a "box" background with element_size h whose only boundaries are
 // named box sides (walls), and the spec has those walls: then momentum_radius = 3 h (two
 // particles within two kernel supports of 1.5 h share grid nodes) and momentum_wall_range = 2 h
-// (the kernel support plus a cell of travel). Leaves momentum off otherwise and returns why.
-std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json);
+// (the kernel support plus a cell of travel). With `at_walls`, momentum_slip_walls is set when
+// every boundary is "slip" or "roller". Leaves momentum off otherwise and returns why.
+std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json,
+                             bool at_walls = true);
 
 // Contact candidates: pairs closer than `radius` in `points` [N, dim] that the mesh does not join
 // and that belong to different bodies or mesh components (public data has no body ids), or to one
@@ -126,25 +132,37 @@ struct Batch {
   torch::Tensor noise;
   MultilevelTensors graph;
   int64_t contact_edges = 0;  // level-0 contact edges found
-  // With spec.has_momentum(): each node's free group (-1: none; group ids are unique in the
-  // batch) and its lumped mass (reference cell volume / (dim + 1) per vertex; a uniform density
-  // cancels in the projection).
-  torch::Tensor group;  // [N] int64
-  torch::Tensor mass;   // [N] float32
+  // With spec.has_momentum(): each node's group (-1: none; group ids are unique in the batch),
+  // its lumped mass (reference cell volume / (dim + 1) per vertex; a uniform density cancels in
+  // the projection), and which momenta each group keeps (MomentumGroups::conserved; undefined:
+  // all of them).
+  torch::Tensor group;      // [N] int64
+  torch::Tensor mass;       // [N] float32
+  torch::Tensor conserved;  // [num_groups, dim + 1] float32, 1 = kept
   int64_t num_groups = 0;
 };
 
-// Free groups of one state (see LagrangianSpec::momentum_radius): [N] group index or -1, and the
-// group count. `x` [N, dim] world positions.
-std::vector<int64_t> momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
-                                     const torch::Tensor& x, int64_t* num_groups);
+// The momentum groups of one state (see LagrangianSpec::momentum_radius). A group with a
+// kinematic node is left out. A group farther than momentum_wall_range from every wall keeps its
+// linear and angular momentum; with spec.momentum_slip_walls a group near the walls of some axes
+// (not all) keeps its linear momentum along the other axes (a slip wall pushes along its normal
+// only; the torque of its push is not zero, so the angular momentum is not kept); otherwise a
+// group near a wall is left out.
+struct MomentumGroups {
+  std::vector<int64_t> group;    // [N] group index or -1
+  int64_t count = 0;             // groups
+  std::vector<float> conserved;  // [count, dim + 1]: linear along each axis, then angular; 1 = kept
+};
+MomentumGroups momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh& mesh,
+                               const torch::Tensor& x);
 // Lumped node masses of a mesh: each simplex's reference volume shared equally by its vertices.
 std::vector<float> lumped_masses(const TrajectoryMesh& mesh);
 
-// `accel` [N, dim] with, on every free group of the batch, the mass-weighted mean (linear
-// momentum) and the rigid angular acceleration about the group's centre of mass (angular
-// momentum; 2-D and 3-D) removed; other nodes unchanged. Differentiable; identity when the batch
-// has no free group.
+// `accel` [N, dim] with, on every group of the batch, the mass-weighted mean (linear momentum,
+// along the axes the group keeps) and the rigid angular acceleration about the group's centre of
+// mass (angular momentum, 2-D and 3-D, where kept) removed; other nodes unchanged. The
+// mass-weighted orthogonal projection onto accelerations that keep those momenta.
+// Differentiable; identity when the batch has no group.
 torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel);
 
 class LagrangianAdapter {

@@ -153,6 +153,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   int64_t inertial_count = 0;
   // RMSE-all split into each body's centre, rotation and deformation, model and reference.
   MotionErrorSum model_parts, inertial_parts, rigid_parts;
+  TrajectoryRmse per_trajectory;
   rollout_outputs::RolloutTally tally;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
@@ -177,6 +178,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                                  .to(torch::kInt64)
                            : torch::zeros({0, spec.dim + 1}, torch::kInt64);
     const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
+    int64_t steps = 0;
+    double model_sq = 0, inertial_traj_sq = 0;  // this trajectory's sums of per-step MSE
     for (int64_t f = 1; f + 1 < frames; ++f) {
       Stopwatch clock;
       // The state the model sees: its own frames, or the truth with teacher forcing.
@@ -202,7 +205,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                 ? torch::where(mask, 2 * truth[f] - truth[f - 1], truth[f + 1])
                 : torch::where(mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]),
                                truth[f + 1]);
-        inertial_sq += (inertial - truth[f + 1]).pow(2).mean().item<double>();
+        const double inertial_mse = (inertial - truth[f + 1]).pow(2).mean().item<double>();
+        inertial_sq += inertial_mse;
+        inertial_traj_sq += inertial_mse;
         ++inertial_count;
         inertial_parts.add(body_motion_error(inertial, truth[f + 1], mesh.body_id));
         rigid_parts.add(
@@ -214,7 +219,13 @@ RolloutMetrics rollout(const RolloutRequest& request) {
           ((next - seen(f)) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
       curves.add(static_cast<size_t>(f - 1), pos_err, vel_err,
                  inverted_fraction(cells, reference_sign, next, spec.dim));
+      model_sq += pos_err;
+      ++steps;
     }
+    const double inv_steps = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
+    per_trajectory.steps.push_back(steps);
+    per_trajectory.model.push_back(std::sqrt(model_sq * inv_steps));
+    per_trajectory.constant_velocity.push_back(std::sqrt(inertial_traj_sq * inv_steps));
     const double solver_s = data.solver_wall_s(t);
     if (solver_s >= 0)
       solver_ms_per_frame.push_back(1000.0 * solver_s /
@@ -254,6 +265,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.rmse_all_parts_constant_velocity = inertial_parts.rmse();
   if (const auto rigid = rigid_parts.rmse())
     metrics.rmse_all_deformation_rigid = rigid->deformation;
+  metrics.rmse_all_ratio_interval = bootstrap_ratio_interval(
+      per_trajectory.steps, per_trajectory.model, per_trajectory.constant_velocity);
+  metrics.per_trajectory = std::move(per_trajectory);
   std::vector<double>& per_step = metrics.rmse_per_step["world_pos"];
   for (size_t s = 0; s < curves.count.size(); ++s)
     per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));
@@ -280,6 +294,14 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       std::cerr << " (by body: centre " << metrics.rmse_all_parts->centre << ", rotation "
                 << metrics.rmse_all_parts->rotation << ", deformation "
                 << metrics.rmse_all_parts->deformation << ")";
+    if (metrics.rmse_all && metrics.rmse_all_constant_velocity &&
+        *metrics.rmse_all_constant_velocity > 0) {
+      std::cerr << ", " << metrics.rmse_all->at("world_pos") / *metrics.rmse_all_constant_velocity
+                << "x constant velocity";
+      if (metrics.rmse_all_ratio_interval)
+        std::cerr << " (95 % over trajectories " << metrics.rmse_all_ratio_interval->lo << "-"
+                  << metrics.rmse_all_ratio_interval->hi << ")";
+    }
     std::cerr << ", " << metrics.infer_ms_per_step << " ms/step -> "
               << (out_dir / "metrics.json").string() << "\n";
   }

@@ -1,7 +1,10 @@
 #include "pipeline/rollout_metrics.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <random>
+#include <stdexcept>
 
 #include "pipeline/json_measures.hpp"
 
@@ -70,6 +73,51 @@ std::map<std::string, std::vector<double>> curves_from_json(JsonObjectReader& pa
   return curves;
 }
 
+Json to_json(const TrajectoryRmse& t) {
+  return {{"steps", t.steps},
+          {"rmse_all", t.model},
+          {"rmse_all_constant_velocity", t.constant_velocity}};
+}
+
+// {steps, rmse_all, rmse_all_constant_velocity}, arrays of one length; absent (older files) is
+// none.
+std::optional<TrajectoryRmse> trajectory_rmse_from_json(JsonObjectReader& parent,
+                                                        const std::string& key) {
+  if (!parent.has(key)) return std::nullopt;
+  const Json& value = parent.raw(key);
+  const char* shape =
+      "an object {steps, rmse_all, rmse_all_constant_velocity} of equal-length arrays";
+  require(value.is_object(), parent.context(key), shape);
+  JsonObjectReader r(value, parent.context(key));
+  TrajectoryRmse t;
+  const Json& steps = r.raw("steps");
+  require(steps.is_array(), r.context("steps"), "an array of step counts");
+  for (const Json& v : steps) {
+    require(v.is_number_integer() && v.get<int64_t>() >= 0, r.context("steps"),
+            "an array of step counts (integers >= 0)");
+    t.steps.push_back(v.get<int64_t>());
+  }
+  t.model = measures_from_json(r.raw("rmse_all"), r.context("rmse_all"));
+  t.constant_velocity = measures_from_json(r.raw("rmse_all_constant_velocity"),
+                                           r.context("rmse_all_constant_velocity"));
+  r.finish();
+  require(t.model.size() == t.steps.size() && t.constant_velocity.size() == t.steps.size(),
+          parent.context(key), shape);
+  return t;
+}
+
+// [lo, hi] with 0 < lo <= hi; absent is none.
+std::optional<RatioInterval> interval_from_json(JsonObjectReader& parent, const std::string& key) {
+  if (!parent.has(key)) return std::nullopt;
+  const Json& value = parent.raw(key);
+  require(value.is_array() && value.size() == 2 && value[0].is_number() && value[1].is_number(),
+          parent.context(key), "[lo, hi]");
+  RatioInterval i{value[0].get<double>(), value[1].get<double>()};
+  require(std::isfinite(i.lo) && std::isfinite(i.hi) && 0 <= i.lo && i.lo <= i.hi,
+          parent.context(key), "[lo, hi] with 0 <= lo <= hi");
+  return i;
+}
+
 std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
   const Json& list = parent.raw("diverged");
   require(list.is_array(), parent.context("diverged"), "an array of {trajectory, frame}");
@@ -88,6 +136,47 @@ std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
 }
 
 }  // namespace
+
+std::optional<RatioInterval> bootstrap_ratio_interval(const std::vector<int64_t>& steps,
+                                                      const std::vector<double>& a,
+                                                      const std::vector<double>& b, double level,
+                                                      int resamples, uint64_t seed) {
+  if (a.size() != steps.size() || b.size() != steps.size())
+    throw std::invalid_argument("bootstrap_ratio_interval: sizes differ");
+  if (!(level > 0 && level < 1) || resamples < 2)
+    throw std::invalid_argument("bootstrap_ratio_interval: level in (0, 1), resamples >= 2");
+  const size_t n = steps.size();
+  if (n < 2) return std::nullopt;
+  // Each trajectory's squared-error sums: steps x RMSE^2.
+  std::vector<double> sa(n), sb(n);
+  for (size_t i = 0; i < n; ++i) {
+    sa[i] = static_cast<double>(steps[i]) * a[i] * a[i];
+    sb[i] = static_cast<double>(steps[i]) * b[i] * b[i];
+  }
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<size_t> pick(0, n - 1);
+  std::vector<double> ratios;
+  ratios.reserve(static_cast<size_t>(resamples));
+  for (int k = 0; k < resamples; ++k) {
+    double num = 0, den = 0;
+    for (size_t j = 0; j < n; ++j) {
+      const size_t i = pick(rng);
+      num += sa[i];
+      den += sb[i];
+    }
+    if (!(den > 0) || !std::isfinite(num)) return std::nullopt;
+    ratios.push_back(std::sqrt(num / den));
+  }
+  std::sort(ratios.begin(), ratios.end());
+  // Percentiles by linear interpolation between order statistics.
+  auto quantile = [&](double q) {
+    const double at = q * static_cast<double>(ratios.size() - 1);
+    const size_t below = static_cast<size_t>(std::floor(at));
+    const size_t above = std::min(below + 1, ratios.size() - 1);
+    return ratios[below] + (at - static_cast<double>(below)) * (ratios[above] - ratios[below]);
+  };
+  return RatioInterval{quantile(0.5 * (1 - level)), quantile(0.5 * (1 + level))};
+}
 
 double FieldRmse::at(const std::string& field) const {
   const auto it = fields.find(field);
@@ -128,6 +217,9 @@ Json to_json(const RolloutMetrics& m) {
       j["rmse_all_parts_constant_velocity"] = to_json(*m.rmse_all_parts_constant_velocity);
     if (m.rmse_all_deformation_rigid)
       j["rmse_all_deformation_rigid"] = *m.rmse_all_deformation_rigid;
+    if (m.rmse_all_ratio_interval)
+      j["rmse_all_ratio_interval"] = {m.rmse_all_ratio_interval->lo, m.rmse_all_ratio_interval->hi};
+    if (m.per_trajectory) j["per_trajectory"] = to_json(*m.per_trajectory);
   }
   j["seeding"] = m.seeding;
   j["infer_ms_per_step"] = m.infer_ms_per_step;
@@ -179,6 +271,8 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
         motion_rmse_from_json(r, "rmse_all_parts_constant_velocity");
     if (r.has("rmse_all_deformation_rigid"))
       m.rmse_all_deformation_rigid = read_measure(r, "rmse_all_deformation_rigid");
+    m.rmse_all_ratio_interval = interval_from_json(r, "rmse_all_ratio_interval");
+    m.per_trajectory = trajectory_rmse_from_json(r, "per_trajectory");
   }
   m.seeding = r.get<std::string>("seeding");
   m.infer_ms_per_step = r.get<double>("infer_ms_per_step");

@@ -29,6 +29,31 @@ struct MotionRmse {
   double centre = 0.0, rotation = 0.0, deformation = 0.0;
 };
 
+// Lagrangian, per test trajectory (in file order): its predicted steps and the position RMSE over
+// them of the model and of constant velocity. RMSE-all is the step-weighted RMS of these.
+struct TrajectoryRmse {
+  std::vector<int64_t> steps;
+  std::vector<double> model, constant_velocity;
+  size_t size() const { return steps.size(); }
+};
+
+// An interval [lo, hi] of a ratio of two RMSE-alls from resampling test trajectories.
+struct RatioInterval {
+  double lo = 0.0, hi = 0.0;
+};
+
+// Percentile bootstrap of RMSE-all(a) / RMSE-all(b) over trajectories drawn with replacement,
+// paired (each draw takes trajectory i of both): RMSE-all over a draw is
+// sqrt(sum steps_i a_i^2 / sum steps_i). `level` (e.g. 0.95) is the central share of the
+// `resamples` ratios the interval holds. Deterministic for a seed. None when there are fewer
+// than 2 trajectories or b's RMSE-all over a draw can be 0. Throws std::invalid_argument on
+// sizes that differ or a level outside (0, 1).
+std::optional<RatioInterval> bootstrap_ratio_interval(const std::vector<int64_t>& steps,
+                                                      const std::vector<double>& a,
+                                                      const std::vector<double>& b,
+                                                      double level = 0.95, int resamples = 4000,
+                                                      uint64_t seed = 1);
+
 struct DivergedTrajectory {
   int64_t trajectory = 0;
   int64_t frame = 0;  // the first frame with a non-finite prediction
@@ -62,6 +87,12 @@ struct RolloutMetrics {
   // model of the elastic response must beat (constant velocity's deformation part also counts
   // the stretch that extrapolating a spinning body's nodes along straight lines makes).
   std::optional<double> rmse_all_deformation_rigid;
+  // Lagrangian: each trajectory's RMSE ("per_trajectory"), and the 95 % bootstrap interval of
+  // RMSE-all / constant velocity over the test trajectories ("rmse_all_ratio_interval"): how far
+  // the ratio could move on another draw of test trajectories from the same family. None in
+  // files written before they existed.
+  std::optional<TrajectoryRmse> per_trajectory;
+  std::optional<RatioInterval> rmse_all_ratio_interval;
   // Eulerian: the first frame held on the predicted nodes (no model).
   std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
   std::vector<DivergedTrajectory> diverged;

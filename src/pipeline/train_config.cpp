@@ -76,8 +76,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     require(c.features.walls == "auto" || c.features.walls == "off", f.context("walls"),
             "\"auto\" or \"off\"");
     c.features.momentum = f.opt<std::string>("momentum", c.features.momentum);
-    require(c.features.momentum == "auto" || c.features.momentum == "off", f.context("momentum"),
-            "\"auto\" or \"off\"");
+    require(c.features.momentum == "auto" || c.features.momentum == "free" ||
+                c.features.momentum == "off",
+            f.context("momentum"), "\"auto\", \"free\" or \"off\"");
     c.features.output = f.opt<std::string>("output", c.features.output);
     require(c.features.output == "auto" || c.features.output == "acceleration" ||
                 c.features.output == "velocity",

@@ -38,7 +38,9 @@ struct FeatureConfig {
   std::string walls = "auto";
   // Momentum of free bodies: "auto" = on when the scene allows it (LagrangianSpec,
   // resolve_momentum) and the training data confirms it (free groups' true accelerations conserve
-  // momentum to 5 %: FLIP keeps angular momentum only to ~1 %); "off".
+  // momentum to 5 %: FLIP keeps angular momentum only to ~1 %), including, with slip or roller
+  // walls, a group's linear momentum along a wall near it; "free" = the same for groups near no
+  // wall only; "off".
   std::string momentum = "auto";
   // Lagrangian output: "acceleration" (x_{t+1} - 2 x_t + x_{t-1}, second-order integration),
   // "velocity" (x_{t+1} - x_t, first-order, as MeshGraphNets' DeformingPlate), or "auto"

@@ -346,7 +346,10 @@ TrainResult train(const TrainRequest& request) {
                       : std::string("off"))
               << ", momentum "
               << (resolved.spec.has_momentum()
-                      ? "conserved on free bodies (data residual " +
+                      ? std::string(resolved.spec.momentum_slip_walls
+                                        ? "conserved on free bodies and along slip walls"
+                                        : "conserved on free bodies") +
+                            " (data residual " +
                             std::to_string(100.0 * resolved.momentum_residual) + " %)"
                       : "not conserved" + (resolved.momentum_note.empty()
                                                ? std::string()

@@ -119,8 +119,9 @@ double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
 // Momentum "auto" keeps conservation only when the data holds it to this relative residual.
 constexpr double kMomentumTolerance = 0.05;
 
-// Relative residual sqrt(sum m |a - P a|^2 / sum m |a|^2) of the true accelerations of free
-// groups (P = project_momentum) over up to 64 training frames; NaN when no frame has a free group.
+// Relative residual sqrt(sum m |a - P a|^2 / sum m |a|^2) of the true accelerations of the
+// momentum groups (P = project_momentum; groups at slip walls included when the spec keeps their
+// tangential momentum) over up to 64 training frames; NaN when no frame has a group.
 double momentum_residual(const Dataset& data, GraphStore& store, const LagrangianSpec& spec,
                          uint64_t seed) {
   LagrangianAdapter adapter(spec);
@@ -235,8 +236,8 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
   if (config.features.strain == "auto") s.strain_scale = rms_strain(train_data, probe, config.seed);
   // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
   if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
-  if (config.features.momentum == "auto") {
-    r.momentum_note = resolve_momentum(s, train_data.scene());
+  if (config.features.momentum != "off") {
+    r.momentum_note = resolve_momentum(s, train_data.scene(), config.features.momentum == "auto");
     if (s.has_momentum()) {
       const double residual = momentum_residual(train_data, probe, s, config.seed);
       if (!(residual <= kMomentumTolerance)) {
@@ -245,6 +246,7 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
                               : "the training data's free bodies do not conserve it (" +
                                     std::to_string(100.0 * residual) + " % residual)";
         s.momentum_radius = s.momentum_wall_range = 0.0;
+        s.momentum_slip_walls = false;
       } else {
         r.momentum_residual = residual;
       }

@@ -158,6 +158,20 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   EXPECT_TRUE(open.has_walls());
   EXPECT_TRUE(std::isnan(open.wall_lo[1]) && std::isnan(open.wall_hi[1]));
   EXPECT_EQ(open.input_size(), s.input_size());
+  // The momentum projection along slip walls moves only to scenes whose walls all slip.
+  LagrangianSpec slipping = s;
+  slipping.momentum_radius = 0.12;
+  slipping.momentum_wall_range = 0.08;
+  slipping.momentum_slip_walls = true;
+  auto moved = [&](const std::string& type) {
+    return walls_for_scene(slipping, R"({"background": {"type": "box", "min": [0, 0],
+        "max": [3, 3]}, "boundaries": [{"group": "right", "type": ")" +
+                                         type + R"("}]})");
+  };
+  EXPECT_TRUE(moved("slip").momentum_slip_walls);
+  EXPECT_TRUE(moved("roller").momentum_slip_walls);
+  EXPECT_FALSE(moved("fixed").momentum_slip_walls);
+  EXPECT_DOUBLE_EQ(moved("fixed").momentum_radius, 0.12);  // free groups still conserve
 
   // No box, or a box without named sides: no walls.
   for (const char* scene : {R"({"background": {"type": "mesh"}})",

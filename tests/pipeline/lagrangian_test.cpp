@@ -302,6 +302,55 @@ TEST(MomentumProjection, RemovesLinearAndAngularOnFreeGroupsOnly) {
   EXPECT_TRUE(torch::equal(project_momentum(none, a), a));
 }
 
+// Groups at slip walls keep only some momenta: the projection removes exactly those and is still
+// the mass-weighted orthogonal projection.
+TEST(MomentumProjection, KeepsOnlyTheMomentaEachGroupConserves) {
+  for (int dim : {2, 3}) {
+    for (uint64_t seed = 0; seed < 10; ++seed) {
+      SCOPED_TRACE("dim " + std::to_string(dim) + " seed " + std::to_string(seed));
+      Batch b = random_groups(dim, 4, 5, 3, 100 + seed);
+      // Group 0 keeps everything, 1 the linear momentum along axis 0 only, 2 along all axes
+      // but axis dim - 1, 3 nothing (a corner).
+      auto kept = torch::zeros({4, dim + 1}, torch::kFloat32);
+      kept[0].fill_(1);
+      kept[1][0] = 1;
+      kept[2].slice(0, 0, dim - 1).fill_(1);
+      b.conserved = kept;
+      const auto a = torch::randn({b.cur.size(0), dim}, torch::kFloat64);
+      const auto p = project_momentum(b, a);
+      const auto m = b.mass.to(torch::kFloat64).unsqueeze(1);
+      for (int64_t g = 0; g < 4; ++g) {
+        const auto in = b.group == g;
+        const auto mg = m.index({in});
+        const auto before = (mg * a.index({in})).sum(0) / mg.sum();
+        const auto after = (mg * p.index({in})).sum(0) / mg.sum();
+        for (int k = 0; k < dim; ++k) {
+          if (kept[g][k].item<float>() > 0)
+            EXPECT_LT(std::abs(after[k].item<double>()), 1e-12) << "group " << g << " axis " << k;
+          else
+            EXPECT_NEAR(after[k].item<double>(), before[k].item<double>(), 1e-12)
+                << "group " << g << " axis " << k;
+        }
+        // Only the linear part leaves a group that does not keep its angular momentum: what
+        // changed is uniform over the group.
+        if (g > 0) {
+          const auto change = (a - p).index({in});
+          EXPECT_LT((change - change[0]).abs().max().item<double>(), 1e-12) << "group " << g;
+        }
+      }
+      EXPECT_TRUE(torch::equal(p.index({b.group == 3}), a.index({b.group == 3})));
+      EXPECT_TRUE(torch::equal(p.index({b.group < 0}), a.index({b.group < 0})));
+      // Group 0 conserves both momenta, as without `conserved`.
+      Batch all = b;
+      all.conserved = torch::Tensor();
+      const auto full = project_momentum(all, a);
+      EXPECT_LT((p - full).index({b.group == 0}).abs().max().item<double>(), 1e-12);
+      EXPECT_LT((project_momentum(b, p) - p).abs().max().item<double>(), 1e-12);  // idempotent
+      EXPECT_LT(std::abs((m * (a - p) * p).sum().item<double>()), 1e-10);         // orthogonal
+    }
+  }
+}
+
 // Three bodies of 2 x 2 nodes (squares of side 0.05) in a walled unit box.
 TrajectoryMesh three_squares() {
   TrajectoryMesh m;
@@ -330,39 +379,72 @@ torch::Tensor placed(const TrajectoryMesh& m, const std::vector<std::pair<double
 }
 
 TEST(MomentumGroups, BodiesInRangeJoinWallsAndKinematicNodesRelease) {
+  const std::string scene = R"({"scene": {
+      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+      "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"},
+                     {"group": "bottom", "type": "roller"}, {"group": "top", "type": "slip"}]}})";
   LagrangianSpec spec;
-  resolve_walls(spec, R"({"scene": {
-      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
-      "boundaries": [{"group": "left"}, {"group": "right"}, {"group": "bottom"}, {"group": "top"}]}})",
-                0.1);
-  ASSERT_EQ(resolve_momentum(spec, R"({"scene": {
-      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
-      "boundaries": [{"group": "left"}, {"group": "right"}, {"group": "bottom"}, {"group": "top"}]}})"),
-            "");
+  resolve_walls(spec, scene, 0.1);
+  ASSERT_EQ(resolve_momentum(spec, scene, false), "");  // "free": groups near no wall only
   EXPECT_DOUBLE_EQ(spec.momentum_radius, 0.12);
   EXPECT_DOUBLE_EQ(spec.momentum_wall_range, 0.08);
+  EXPECT_FALSE(spec.momentum_slip_walls);
   TrajectoryMesh mesh = three_squares();
-  int64_t count = 0;
+  auto expect_keeps = [](const MomentumGroups& m, int64_t group, std::vector<float> kept) {
+    ASSERT_GE(group, 0);
+    ASSERT_LT(group, m.count);
+    EXPECT_EQ(
+        std::vector<float>(m.conserved.begin() + group * 3, m.conserved.begin() + group * 3 + 3),
+        kept)
+        << "group " << group;
+  };
   // Bodies 0 and 1 are 0.10 apart (< 0.12): one group; body 2 is far: its own group.
-  auto g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}), &count);
-  EXPECT_EQ(count, 2);
-  EXPECT_EQ(g[0], g[4]);
-  EXPECT_NE(g[0], g[8]);
-  for (int i = 0; i < 12; ++i) EXPECT_GE(g[i], 0);
+  auto m = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}));
+  EXPECT_EQ(m.count, 2);
+  EXPECT_EQ(m.conserved.size(), 6u);
+  EXPECT_EQ(m.group[0], m.group[4]);
+  EXPECT_NE(m.group[0], m.group[8]);
+  for (int i = 0; i < 12; ++i) EXPECT_GE(m.group[i], 0);
+  for (int64_t g = 0; g < m.count; ++g) expect_keeps(m, g, {1, 1, 1});
   // 0.13 apart: three groups.
-  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.7}}), &count);
-  EXPECT_EQ(count, 3);
+  m = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.7}}));
+  EXPECT_EQ(m.count, 3);
   // Body 2 within 0.08 of the top wall: released (the wall pushes it).
-  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.88}}), &count);
-  EXPECT_EQ(count, 2);
-  EXPECT_EQ(g[8], -1);
+  m = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.88}}));
+  EXPECT_EQ(m.count, 2);
+  EXPECT_EQ(m.group[8], -1);
+  // "auto" with slip and roller walls: body 2 keeps its momentum along the top wall (x) only;
+  // bodies 0 and 1, joined and near the left wall (0.05 from it), keep theirs along y; body 2
+  // in the top-left corner keeps none.
+  ASSERT_EQ(resolve_momentum(spec, scene), "");
+  EXPECT_TRUE(spec.momentum_slip_walls);
+  m = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.88}}));
+  EXPECT_EQ(m.count, 3);
+  expect_keeps(m, m.group[0], {1, 1, 1});
+  expect_keeps(m, m.group[8], {1, 0, 0});
+  m = momentum_groups(spec, mesh, placed(mesh, {{0.05, 0.3}, {0.2, 0.3}, {0.02, 0.9}}));
+  EXPECT_EQ(m.count, 1);
+  EXPECT_EQ(m.group[0], m.group[4]);
+  expect_keeps(m, m.group[0], {0, 1, 0});
+  EXPECT_EQ(m.group[8], -1);
+  // A fixed boundary anywhere: walls are not slip, a group near one is left out again.
+  const std::string fixed = R"({"scene": {
+      "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+      "boundaries": [{"group": "left", "type": "slip"}, {"group": "top", "type": "fixed"}]}})";
+  LagrangianSpec sticky;
+  resolve_walls(sticky, fixed, 0.1);
+  ASSERT_EQ(resolve_momentum(sticky, fixed), "");
+  EXPECT_FALSE(sticky.momentum_slip_walls);
+  EXPECT_EQ(
+      momentum_groups(sticky, mesh, placed(mesh, {{0.3, 0.3}, {0.48, 0.3}, {0.3, 0.88}})).group[8],
+      -1);
   // A fixed node in body 1 releases body 1 and, once joined, body 0 with it.
   mesh.node_type[5] = static_cast<int32_t>(NodeType::kFixed);
-  g = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}), &count);
-  EXPECT_EQ(count, 1);
-  EXPECT_EQ(g[0], -1);
-  EXPECT_EQ(g[4], -1);
-  EXPECT_EQ(g[8], 0);
+  m = momentum_groups(spec, mesh, placed(mesh, {{0.3, 0.3}, {0.45, 0.3}, {0.3, 0.7}}));
+  EXPECT_EQ(m.count, 1);
+  EXPECT_EQ(m.group[0], -1);
+  EXPECT_EQ(m.group[4], -1);
+  EXPECT_EQ(m.group[8], 0);
   // Lumped masses share each triangle's area: 0.05^2 per body.
   const auto mass = lumped_masses(mesh);
   double total = 0;
@@ -408,45 +490,59 @@ TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
 
 // The physics the projection relies on: in UMLS-MPM (FLIP) trajectories of the default scene,
 // the true accelerations of free groups conserve linear momentum to float round-off, and angular
-// momentum to a few per cent (FLIP is not exactly angular-momentum conserving).
-TEST(MomentumProjection, MpmDisksConserveMomentumOnFreeGroups) {
+// momentum to a few per cent (FLIP is not exactly angular-momentum conserving); a group at one
+// slip wall keeps its linear momentum along the wall to round-off while the wall changes it
+// along the normal.
+TEST(MomentumProjection, MpmDisksConserveMomentumOnFreeGroupsAndAlongSlipWalls) {
   const std::string family_file = std::string(BSMS_SOURCE_DIR) + "/configs/families/disks2d.json";
-  const generate::FamilyConfig family = generate::load_family(family_file, {"frames=12"});
+  const generate::FamilyConfig family = generate::load_family(family_file, {"frames=48"});
   std::ifstream in(family_file);
   const std::string scene_json((std::istreambuf_iterator<char>(in)), {});
   LagrangianSpec spec;
   resolve_walls(spec, scene_json, 0.1);
   ASSERT_EQ(resolve_momentum(spec, scene_json), "");
-  double linear = 0, angular = 0, all = 0;
-  int free_frames = 0;
-  for (int64_t index = 0; index < 3; ++index) {
+  ASSERT_TRUE(spec.momentum_slip_walls);
+  double kept_linear = 0, off = 0, all = 0, normal = 0, at_walls = 0;
+  int free_groups = 0, wall_groups = 0;
+  for (int64_t index = 0; index < 6; ++index) {
     const Trajectory t =
-        generate::generate_trajectory(family, 11, index, 3, "/tmp/bsms_momentum_unused");
+        generate::generate_trajectory(family, 11, index, 6, "/tmp/bsms_momentum_unused");
     const int64_t n = t.mesh.num_nodes();
     const auto x = torch::tensor(t.fields.at("world_pos")).reshape({t.num_frames, n, 2});
     for (int64_t f = 1; f + 1 < t.num_frames; ++f) {
       Batch b;
-      std::vector<int64_t> group = momentum_groups(spec, t.mesh, x[f], &b.num_groups);
+      MomentumGroups found = momentum_groups(spec, t.mesh, x[f]);
+      b.num_groups = found.count;
       if (b.num_groups == 0) continue;
-      ++free_frames;
-      b.group = torch::tensor(group, torch::kInt64);
+      b.group = torch::tensor(found.group, torch::kInt64);
       b.mass = torch::tensor(lumped_masses(t.mesh));
       b.cur = x[f].to(torch::kFloat64);
+      b.conserved = torch::from_blob(found.conserved.data(), {found.count, 3}).clone();
+      const auto kept = b.conserved.to(torch::kFloat64);  // [G, 3]
+      const auto walled = (kept.select(1, 2) == 0).to(torch::kFloat64).unsqueeze(1);
+      free_groups += static_cast<int>(found.count - walled.sum().item<double>());
+      wall_groups += static_cast<int>(walled.sum().item<double>());
       const auto a = (x[f + 1] - 2 * x[f] + x[f - 1]).to(torch::kFloat64);
       const auto m = (b.mass.to(torch::kFloat64) * (b.group >= 0)).unsqueeze(1);
-      // Linear part alone: the mass-weighted mean of each group.
+      // The mass-weighted mean of each group along the axes it keeps, and along the others.
       const auto g = b.group.clamp_min(0);
       const auto mean = torch::zeros({b.num_groups, 2}, torch::kFloat64).index_add(0, g, m * a) /
                         torch::zeros({b.num_groups, 1}, torch::kFloat64).index_add(0, g, m);
-      linear += (m * mean.index_select(0, g).square()).sum().item<double>();
-      angular += (m * (a - project_momentum(b, a)).square()).sum().item<double>();
+      const auto axes = kept.slice(1, 0, 2);
+      kept_linear += (m * (mean * axes).index_select(0, g).square()).sum().item<double>();
+      normal += (m * (mean * (1 - axes)).index_select(0, g).square()).sum().item<double>();
+      at_walls += (m * walled.index_select(0, g) * a.square()).sum().item<double>();
+      off += (m * (a - project_momentum(b, a)).square()).sum().item<double>();
       all += (m * a.square()).sum().item<double>();
     }
   }
-  ASSERT_GT(free_frames, 5);
+  ASSERT_GT(free_groups, 5);
+  ASSERT_GT(wall_groups, 10);
   ASSERT_GT(all, 0);
-  EXPECT_LT(std::sqrt(linear / all), 1e-3);
-  EXPECT_LT(std::sqrt(angular / all), 0.02);
+  EXPECT_LT(std::sqrt(kept_linear / all), 1e-3);
+  EXPECT_LT(std::sqrt(off / all), 0.02);
+  // The walls' push is real: the normal part is a sizeable share of the wall groups' motion.
+  EXPECT_GT(std::sqrt(normal / at_walls), 0.05);
 }
 
 }  // namespace

@@ -99,6 +99,26 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NEAR(squares(*metrics.rmse_all_parts), rmse_all * rmse_all, 1e-5 * rmse_all * rmse_all);
   const double cv = *metrics.rmse_all_constant_velocity;
   EXPECT_NEAR(squares(*metrics.rmse_all_parts_constant_velocity), cv * cv, 1e-5 * cv * cv);
+  // Per trajectory: the step-weighted RMS of the trajectories' RMSEs is RMSE-all (model and
+  // reference), and the bootstrap interval of the ratio holds the ratio.
+  ASSERT_TRUE(metrics.per_trajectory);
+  const TrajectoryRmse& per = *metrics.per_trajectory;
+  ASSERT_EQ(static_cast<int64_t>(per.size()), metrics.num_trajectories);
+  double model_sq = 0, cv_sq = 0, steps = 0;
+  for (size_t t = 0; t < per.size(); ++t) {
+    EXPECT_EQ(per.steps[t], 28);
+    model_sq += static_cast<double>(per.steps[t]) * per.model[t] * per.model[t];
+    cv_sq +=
+        static_cast<double>(per.steps[t]) * per.constant_velocity[t] * per.constant_velocity[t];
+    steps += static_cast<double>(per.steps[t]);
+  }
+  EXPECT_NEAR(std::sqrt(model_sq / steps), rmse_all, 1e-6 * rmse_all);
+  EXPECT_NEAR(std::sqrt(cv_sq / steps), cv, 1e-6 * cv);
+  if (per.size() >= 2) {
+    ASSERT_TRUE(metrics.rmse_all_ratio_interval);
+    EXPECT_LE(metrics.rmse_all_ratio_interval->lo, rmse_all / cv + 1e-12);
+    EXPECT_GE(metrics.rmse_all_ratio_interval->hi, rmse_all / cv - 1e-12);
+  }
   // The plate falls and drags without turning much: its shape hardly changes, far less than it
   // moves.
   ASSERT_TRUE(metrics.rmse_all_deformation_rigid);
@@ -130,6 +150,15 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NE(text.find("| run | RMSE-all | centre | rotation | deformation |"), std::string::npos);
   EXPECT_NE(text.find("| constant velocity ("), std::string::npos) << text;
   EXPECT_NE(text.find("| rigid bodies (each body's first shape held) |"), std::string::npos);
+  EXPECT_NE(text.find("| run | RMSE-all / constant velocity | 95 % interval |"), std::string::npos)
+      << text;
+  // The same run twice: paired against itself, the ratio and its interval are exactly 1.
+  report.runs = {r.out, r.out};
+  std::ifstream twice(write_report(report));
+  const std::string paired((std::istreambuf_iterator<char>(twice)),
+                           std::istreambuf_iterator<char>());
+  EXPECT_NE(paired.find("| 1.000 | 1.000–1.000 |"), std::string::npos) << paired;
+  report.runs = {r.out};
 
   // Teacher forcing (--one-step): every step from the true frames. Its first step is the
   // rollout's; later ones do not carry the drift, and the references step from the truth too

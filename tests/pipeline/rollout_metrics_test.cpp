@@ -5,8 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -33,6 +37,8 @@ RolloutMetrics lagrangian_metrics() {
   m.rmse_all_parts = MotionRmse{6e-4, 2e-4, 7.75e-4};
   m.rmse_all_parts_constant_velocity = MotionRmse{0.45, 0.2, 0.1};
   m.rmse_all_deformation_rigid = 2e-3;
+  m.per_trajectory = TrajectoryRmse{{3, 2}, {1e-3, 1.5e-3}, {0.4, 0.6}};
+  m.rmse_all_ratio_interval = RatioInterval{1.5e-3, 3.5e-3};
   m.inverted_cells_per_step = {0.0, 0.0, 0.25};
   m.inverted_cells_max = 0.25;
   m.diverged = {{1, 7}};
@@ -80,14 +86,21 @@ TEST(RolloutMetricsFile, RoundTripsThroughTheFile) {
   const Json forced_json = Json::parse(to_json(forced).dump());
   EXPECT_TRUE(forced_json["one_step"].get<bool>());
   EXPECT_TRUE(rollout_metrics_from_json(forced_json, "metrics.json").one_step);
-  // Files written before the split existed have no parts and still read.
+  ASSERT_TRUE(back.per_trajectory && back.rmse_all_ratio_interval);
+  EXPECT_EQ(back.per_trajectory->steps, (std::vector<int64_t>{3, 2}));
+  EXPECT_EQ(back.per_trajectory->constant_velocity[1], 0.6);
+  EXPECT_EQ(back.rmse_all_ratio_interval->hi, 3.5e-3);
+  // Files written before the split and the per-trajectory figures existed still read.
   Json older = written;
   older.erase("rmse_all_parts");
   older.erase("rmse_all_parts_constant_velocity");
   older.erase("rmse_all_deformation_rigid");
+  older.erase("per_trajectory");
+  older.erase("rmse_all_ratio_interval");
   const RolloutMetrics old_back = rollout_metrics_from_json(older, "metrics.json");
   EXPECT_FALSE(old_back.rmse_all_parts || old_back.rmse_all_parts_constant_velocity ||
-               old_back.rmse_all_deformation_rigid);
+               old_back.rmse_all_deformation_rigid || old_back.per_trajectory ||
+               old_back.rmse_all_ratio_interval);
   EXPECT_EQ(Json::parse(to_json(old_back).dump()), older);
 
   // Eulerian: "kind", the persistence reference, no cells; absent figures are null.
@@ -152,9 +165,118 @@ TEST(RolloutMetricsFile, ReaderIsStrictAndNamesFileAndKey) {
   EXPECT_NE(metrics_error(extra_part).find("rmse_all_parts_constant_velocity.spin"),
             std::string::npos)
       << metrics_error(extra_part);
+  Json ragged = good;  // arrays of different lengths
+  ragged["per_trajectory"]["rmse_all"] = Json::array({1e-3});
+  EXPECT_NE(metrics_error(ragged).find("per_trajectory"), std::string::npos)
+      << metrics_error(ragged);
+  Json fractional = good;
+  fractional["per_trajectory"]["steps"] = Json::array({3, 2.5});
+  EXPECT_NE(metrics_error(fractional).find("per_trajectory.steps"), std::string::npos)
+      << metrics_error(fractional);
+  Json reversed = good;
+  reversed["rmse_all_ratio_interval"] = Json::array({0.2, 0.1});
+  EXPECT_NE(metrics_error(reversed).find("rmse_all_ratio_interval"), std::string::npos)
+      << metrics_error(reversed);
   Json model = good;
   model["model"] = "gcn";
   EXPECT_NE(metrics_error(model).find("'model'"), std::string::npos);
+}
+
+// The bootstrap against its exact distribution: with 3 trajectories there are 27 equally likely
+// ordered draws, so the interval's ends are quantiles of 27 known ratios.
+TEST(BootstrapRatioInterval, MatchesTheExactDistributionOnSmallInputs) {
+  const std::vector<int64_t> steps = {48, 30, 48};
+  const std::vector<double> a = {0.02, 0.09, 0.03}, b = {0.2, 0.25, 0.3};
+  std::vector<double> exact;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k) {
+        double num = 0, den = 0;
+        for (int t : {i, j, k}) {
+          num += static_cast<double>(steps[t]) * a[t] * a[t];
+          den += static_cast<double>(steps[t]) * b[t] * b[t];
+        }
+        exact.push_back(std::sqrt(num / den));
+      }
+  std::sort(exact.begin(), exact.end());
+  // P(ratio <= exact[m]) over the 27 draws; the bootstrap's 10 % and 90 % quantiles fall on the
+  // first order statistics whose cumulative share passes them.
+  auto exact_quantile = [&](double q) {
+    for (size_t m = 0; m < exact.size(); ++m)
+      if (static_cast<double>(m + 1) / 27.0 >= q) return exact[m];
+    return exact.back();
+  };
+  const auto i = bootstrap_ratio_interval(steps, a, b, 0.8, 200000, 7);
+  ASSERT_TRUE(i.has_value());
+  EXPECT_NEAR(i->lo, exact_quantile(0.1), 0.02 * exact_quantile(0.1));
+  EXPECT_NEAR(i->hi, exact_quantile(0.9), 0.02 * exact_quantile(0.9));
+  EXPECT_GE(i->lo, exact.front());
+  EXPECT_LE(i->hi, exact.back());
+}
+
+TEST(BootstrapRatioInterval, PropertiesOnRandomTrajectories) {
+  std::mt19937_64 rng(3);
+  std::lognormal_distribution<double> spread(0.0, 0.8);
+  for (int trial = 0; trial < 20; ++trial) {
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    const size_t n = 10 + static_cast<size_t>(trial) * 5;
+    std::vector<int64_t> steps(n);
+    std::vector<double> a(n), b(n);
+    for (size_t k = 0; k < n; ++k) {
+      steps[k] = 10 + static_cast<int64_t>(rng() % 40);
+      b[k] = 0.25 * spread(rng);
+      a[k] = 0.04 * spread(rng);
+    }
+    double num = 0, den = 0;
+    for (size_t k = 0; k < n; ++k) {
+      num += static_cast<double>(steps[k]) * a[k] * a[k];
+      den += static_cast<double>(steps[k]) * b[k] * b[k];
+    }
+    const double point = std::sqrt(num / den);
+    const auto i = bootstrap_ratio_interval(steps, a, b);
+    ASSERT_TRUE(i.has_value());
+    // The whole-sample ratio lies inside; a wider level gives a wider interval; the same seed
+    // gives the same interval.
+    EXPECT_LT(i->lo, point);
+    EXPECT_GT(i->hi, point);
+    const auto wide = bootstrap_ratio_interval(steps, a, b, 0.99);
+    EXPECT_LE(wide->lo, i->lo);
+    EXPECT_GE(wide->hi, i->hi);
+    const auto again = bootstrap_ratio_interval(steps, a, b);
+    EXPECT_EQ(again->lo, i->lo);
+    EXPECT_EQ(again->hi, i->hi);
+    // A run that is c times another on every trajectory: the interval is the point c.
+    std::vector<double> scaled(n);
+    for (size_t k = 0; k < n; ++k) scaled[k] = 0.7 * b[k];
+    const auto exact = bootstrap_ratio_interval(steps, scaled, b);
+    EXPECT_NEAR(exact->lo, 0.7, 1e-12);
+    EXPECT_NEAR(exact->hi, 0.7, 1e-12);
+  }
+  // Four times the trajectories from the same law: about half the width (1 / sqrt(4)).
+  auto width = [&](size_t n, uint64_t seed) {
+    std::mt19937_64 g(seed);
+    std::vector<int64_t> steps(n, 48);
+    std::vector<double> a(n), b(n);
+    for (size_t k = 0; k < n; ++k) {
+      b[k] = 0.25 * spread(g);
+      a[k] = 0.04 * spread(g);
+    }
+    const auto i = bootstrap_ratio_interval(steps, a, b);
+    return i->hi - i->lo;
+  };
+  double small = 0, large = 0;
+  for (uint64_t seed = 0; seed < 10; ++seed) {
+    small += width(100, seed);
+    large += width(400, 100 + seed);
+  }
+  EXPECT_GT(large / small, 0.35);
+  EXPECT_LT(large / small, 0.65);
+  // Too few trajectories or a zero reference: none; bad arguments throw.
+  EXPECT_FALSE(bootstrap_ratio_interval({48}, {0.1}, {0.2}).has_value());
+  EXPECT_FALSE(bootstrap_ratio_interval({48, 48}, {0.1, 0.1}, {0.0, 0.0}).has_value());
+  EXPECT_THROW(bootstrap_ratio_interval({48, 48}, {0.1}, {0.2, 0.2}), std::invalid_argument);
+  EXPECT_THROW(bootstrap_ratio_interval({48, 48}, {0.1, 0.1}, {0.2, 0.2}, 1.0),
+               std::invalid_argument);
 }
 
 TEST(RolloutMetricsFile, MissingOrNonObjectFileIsNamed) {

@@ -71,6 +71,10 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"history": 3,
     "history_noise": "walk"}})"),
             "");
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "walls"}})")
+                .find("features.momentum"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "free"}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 3}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 0.1,
