@@ -106,7 +106,7 @@ std::optional<TrajectoryRmse> trajectory_rmse_from_json(JsonObjectReader& parent
   return t;
 }
 
-// [lo, hi] with 0 < lo <= hi; absent is none.
+// [lo, hi] with 0 <= lo <= hi; absent is none.
 std::optional<RatioInterval> interval_from_json(JsonObjectReader& parent, const std::string& key) {
   if (!parent.has(key)) return std::nullopt;
   const Json& value = parent.raw(key);

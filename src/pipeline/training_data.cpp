@@ -242,8 +242,8 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
       const double residual = momentum_residual(train_data, probe, s, config.seed);
       if (!(residual <= kMomentumTolerance)) {
         r.momentum_note = std::isnan(residual)
-                              ? std::string("the training data has no free body")
-                              : "the training data's free bodies do not conserve it (" +
+                              ? std::string("the training data has no momentum group")
+                              : "the training data's momentum groups do not conserve it (" +
                                     std::to_string(100.0 * residual) + " % residual)";
         s.momentum_radius = s.momentum_wall_range = 0.0;
         s.momentum_slip_walls = false;
