@@ -119,7 +119,11 @@ while :; do
   sessions=$((sessions + 1))
   [ $sessions -le $((want_kills * 4)) ] || fail "too many sessions ($sessions)"
   if [ -f $run/checkpoints/latest.pt ]; then mode=resume; else mode=fresh; fi
-  finish=$([ $kills -ge "$want_kills" ] && echo 1 || echo 0)
+  # Done once there are enough kills and one of them landed inside a checkpoint write (which
+  # kinds the draws give depends on timing: a draw for a checkpoint write in a fresh session
+  # becomes a start-up kill).
+  enough=$([ $kills -ge "$want_kills" ] && echo 1 || echo 0)
+  finish=$([ $enough = 1 ] && [ $in_checkpoint -ge 1 ] && echo 1 || echo 0)
   resume_flag=()
   [ $mode = resume ] && resume_flag=(--resume)
   # shellcheck disable=SC2046
@@ -129,8 +133,10 @@ while :; do
   kind=-
   if [ "$finish" = 0 ]; then
     rand 100
+    if [ $enough = 1 ]; then # enough kills but none inside a checkpoint write yet: aim for one
+      kind=checkpoint delay=1
     # During start-up (half the fresh sessions: kills before the first checkpoint).
-    if [ $draw -lt 15 ] || { [ $mode = fresh ] && [ $draw -lt 50 ]; }; then
+    elif [ $draw -lt 15 ] || { [ $mode = fresh ] && [ $draw -lt 50 ]; }; then
       rand $((startup_ms + 1))
       kind=startup delay=$draw
     elif [ $draw -lt 30 ]; then # the moment the K-th checkpoint write of the session begins
@@ -214,7 +220,7 @@ while :; do
   elif [ $status = 0 ]; then
     [ "$(stat_of $run/train_stats.json steps)" = $steps ] || fail "session ended early"
     check_complete $run
-    [ $kills -ge "$want_kills" ] && break
+    [ $kills -ge "$want_kills" ] && [ $in_checkpoint -ge 1 ] && break
     round=$((round + 1)) round_kills=0 run=crash$round
   else
     cat session.log
