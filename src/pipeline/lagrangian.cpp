@@ -185,18 +185,15 @@ std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json
     return "the scene has no axis-aligned box background with an element_size";
   if (!spec.has_walls()) return "the model has no wall inputs";
   const std::set<std::string> sides = {"left", "right", "bottom", "top", "back", "front"};
-  bool slip = at_walls;
-  for (const auto& b : scene.value("boundaries", Json::array())) {
+  for (const auto& b : scene.value("boundaries", Json::array()))
     if (!b.is_object() || !b.contains("group") || !b["group"].is_string() ||
         sides.count(b["group"].get<std::string>()) == 0)
       return "the scene has a boundary that is not a side of its box";
-  }
-  slip = slip && slip_walls_only(scene);
   const double h = background["element_size"].get<double>();
   if (!(h > 0)) return "the scene's element_size is not positive";
   spec.momentum_radius = 3.0 * h;
   spec.momentum_wall_range = 2.0 * h;
-  spec.momentum_slip_walls = slip;
+  spec.momentum_slip_walls = at_walls && slip_walls_only(scene);
   return "";
 }
 

@@ -270,15 +270,15 @@ std::string write_report(const ReportRequest& request) {
           "trajectories of both, so what the two runs share cancels).\n\n"
        << "| run | RMSE-all / constant velocity | 95 % interval | RMSE-all / " << first_name
        << "'s | 95 % interval (paired) |\n|---|---|---|---|---|\n";
+    const auto interval = [](const std::optional<RatioInterval>& i) {
+      return i ? format_number(i->lo, 3, Notation::kFixed) + "–" +
+                     format_number(i->hi, 3, Notation::kFixed)
+               : std::string("–");
+    };
     for (const auto& r : runs) {
       const RolloutMetrics& m = r.metrics;
       const double all = primary_rmse(m, m.rmse_all);
       const double own_cv = or_nan(m.rmse_all_constant_velocity);
-      auto interval = [](const std::optional<RatioInterval>& i) {
-        return i ? format_number(i->lo, 3, Notation::kFixed) + "–" +
-                       format_number(i->hi, 3, Notation::kFixed)
-                 : std::string("–");
-      };
       std::optional<RatioInterval> paired;
       double against_first = std::nan("");
       // Paired only on the same test trajectories, rolled out over the same steps.
