@@ -20,6 +20,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
+#include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
 #include "pipeline/eulerian.hpp"
 #include "pipeline/fit.hpp"
@@ -240,8 +241,7 @@ TrainResult train(const TrainRequest& request) {
   GraphStore store(config.model.seeding, resolved.levels, cache_dirs);
   auto simulator =
       std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
-  torch::optim::Adam optimizer(simulator->parameters(),
-                               torch::optim::AdamOptions(config.optimizer.lr));
+  FusedAdam optimizer(simulator->parameters(), torch::optim::AdamOptions(config.optimizer.lr));
 
   int64_t step = 0;
   double wall_before = 0.0;

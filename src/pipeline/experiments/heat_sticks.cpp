@@ -16,6 +16,7 @@
 #include "core/error.hpp"
 #include "core/graph.hpp"
 #include "core/runtime.hpp"
+#include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
 #include "models/proximity_multilevel.hpp"
 #include "pipeline/fit.hpp"
@@ -71,7 +72,7 @@ TrainResult train_model(const HeatSticksOptions& o, const ModelSpec& spec) {
   torch::manual_seed(o.seed);
   r.model = std::make_shared<BsmsGnn>(heat_model_options(o.levels, o.latent));
   r.model->train();
-  torch::optim::Adam optimizer(r.model->parameters(), torch::optim::AdamOptions(o.lr));
+  FusedAdam optimizer(r.model->parameters(), torch::optim::AdamOptions(o.lr));
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> value(-1.0, 1.0), offset(0.0, 1.0);
   FitOptions fit_options;  // the trainer's loop and schedule (no warm-up here)
