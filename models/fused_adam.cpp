@@ -38,7 +38,16 @@ std::string state_key(const torch::Tensor& p) {
 
 }  // namespace
 
-bool FusedAdam::fused_path_applies() {
+// The tensors of one fused update: a parameter, its gradient and its state (null before the
+// parameter's first step).
+struct FusedAdam::Slot {
+  torch::Tensor param, grad;
+  torch::optim::AdamParamState* state;
+  std::string key;
+  const torch::optim::AdamOptions* options;  // its group's
+};
+
+bool FusedAdam::collect(std::vector<Slot>& slots) {
   for (auto& group : param_groups()) {
     const auto& o = static_cast<const torch::optim::AdamOptions&>(group.options());
     if (o.weight_decay() != 0 || o.amsgrad()) return false;
@@ -49,14 +58,18 @@ bool FusedAdam::fused_path_applies() {
           !p.is_contiguous() || !g.is_contiguous() || !p.device().is_cpu() ||
           !g.device().is_cpu() || g.numel() != p.numel())
         return false;
-      const auto it = state().find(state_key(p));
+      std::string key = state_key(p);
+      const auto it = state().find(key);
+      torch::optim::AdamParamState* s = nullptr;
       if (it != state().end()) {
-        const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
-        if (!s.exp_avg().is_contiguous() || !s.exp_avg_sq().is_contiguous() ||
-            s.exp_avg().scalar_type() != at::kFloat || s.exp_avg_sq().scalar_type() != at::kFloat ||
-            s.exp_avg().numel() != p.numel() || s.exp_avg_sq().numel() != p.numel())
+        s = static_cast<torch::optim::AdamParamState*>(it->second.get());
+        if (!s->exp_avg().is_contiguous() || !s->exp_avg_sq().is_contiguous() ||
+            s->exp_avg().scalar_type() != at::kFloat ||
+            s->exp_avg_sq().scalar_type() != at::kFloat || s->exp_avg().numel() != p.numel() ||
+            s->exp_avg_sq().numel() != p.numel())
           return false;
       }
+      slots.push_back(Slot{p, g, s, std::move(key), &o});
     }
   }
   return true;
@@ -69,50 +82,50 @@ torch::Tensor FusedAdam::step(LossClosure closure) {
     at::AutoGradMode enable_grad(true);
     loss = closure();
   }
-  last_step_fused_ = fused_path_applies();
+  // Everything is checked (and each state looked up once) before any tensor changes, so a
+  // step is either wholly fused or wholly LibTorch's.
+  std::vector<Slot> slots;
+  last_step_fused_ = collect(slots);
   if (!last_step_fused_) {
     torch::optim::Adam::step();
     return loss;
   }
-  for (auto& group : param_groups()) {
-    const auto& o = static_cast<const torch::optim::AdamOptions&>(group.options());
+  for (Slot& slot : slots) {
+    const torch::Tensor& p = slot.param;
+    const torch::optim::AdamOptions& o = *slot.options;
     const double beta1 = std::get<0>(o.betas()), beta2 = std::get<1>(o.betas());
-    for (auto& p : group.params()) {
-      const torch::Tensor& grad = p.grad();
-      if (!grad.defined()) continue;
-      const std::string key = state_key(p);
-      auto it = state().find(key);
-      if (it == state().end()) {
-        auto fresh = std::make_unique<torch::optim::AdamParamState>();
-        fresh->step(0);
-        fresh->exp_avg(torch::zeros_like(p, at::MemoryFormat::Contiguous));
-        fresh->exp_avg_sq(torch::zeros_like(p, at::MemoryFormat::Contiguous));
-        it = state().emplace(key, std::move(fresh)).first;
-      }
-      auto& s = static_cast<torch::optim::AdamParamState&>(*it->second);
-      s.step(s.step() + 1);
-      const double correction1 = 1 - std::pow(beta1, static_cast<double>(s.step()));
-      const double correction2 = 1 - std::pow(beta2, static_cast<double>(s.step()));
-      // The library's scalars, as its ops see them: each cast to float once.
-      const float b1 = static_cast<float>(beta1), a1 = static_cast<float>(1 - beta1);
-      const float b2 = static_cast<float>(beta2), a2 = static_cast<float>(1 - beta2);
-      const float root2 = static_cast<float>(std::sqrt(correction2));
-      const float eps = static_cast<float>(o.eps());
-      const float step_size = static_cast<float>(-(o.lr() / correction1));
-      float* param = p.data_ptr<float>();
-      const float* g = grad.data_ptr<float>();
-      float* m = s.exp_avg().data_ptr<float>();
-      float* v = s.exp_avg_sq().data_ptr<float>();
-      const AdamScalars k{b1, a1, b2, a2, root2, eps, step_size};
-      auto update = [&](int64_t begin, int64_t end) {
-        adam_update(param + begin, g + begin, m + begin, v + begin, end - begin, k);
-      };
-      const int64_t n = p.numel();
-      if (n < 2 * kGrain)
-        update(0, n);
-      else
-        at::parallel_for(0, n, kGrain, update);
+    if (slot.state == nullptr) {
+      auto fresh = std::make_unique<torch::optim::AdamParamState>();
+      fresh->step(0);
+      fresh->exp_avg(torch::zeros_like(p, at::MemoryFormat::Contiguous));
+      fresh->exp_avg_sq(torch::zeros_like(p, at::MemoryFormat::Contiguous));
+      slot.state = fresh.get();
+      state().emplace(std::move(slot.key), std::move(fresh));
     }
+    auto& s = *slot.state;
+    s.step(s.step() + 1);
+    const double correction1 = 1 - std::pow(beta1, static_cast<double>(s.step()));
+    const double correction2 = 1 - std::pow(beta2, static_cast<double>(s.step()));
+    // The library's scalars, as its ops see them: each cast to float once.
+    const AdamScalars k{static_cast<float>(beta1),
+                        static_cast<float>(1 - beta1),
+                        static_cast<float>(beta2),
+                        static_cast<float>(1 - beta2),
+                        static_cast<float>(std::sqrt(correction2)),
+                        static_cast<float>(o.eps()),
+                        static_cast<float>(-(o.lr() / correction1))};
+    float* param = p.data_ptr<float>();
+    const float* g = slot.grad.data_ptr<float>();
+    float* m = s.exp_avg().data_ptr<float>();
+    float* v = s.exp_avg_sq().data_ptr<float>();
+    auto update = [&](int64_t begin, int64_t end) {
+      adam_update(param + begin, g + begin, m + begin, v + begin, end - begin, k);
+    };
+    const int64_t n = p.numel();
+    if (n < 2 * kGrain)
+      update(0, n);
+    else
+      at::parallel_for(0, n, kGrain, update);
   }
   return loss;
 }

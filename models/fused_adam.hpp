@@ -30,7 +30,10 @@ class FusedAdam : public torch::optim::Adam {
   bool last_step_fused() const { return last_step_fused_; }
 
  private:
-  bool fused_path_applies();
+  struct Slot;
+  // Gathers the parameters with a gradient into `slots`; false where the fused loop does not
+  // apply to one of them.
+  bool collect(std::vector<Slot>& slots);
   bool last_step_fused_ = false;
 };
 
