@@ -38,7 +38,8 @@ bool node_is_fixed(const FixedPlane& plane, const double* x, int dim) {
 }
 
 template <int Dim>
-Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm::Scene& scene) {
+Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm::Scene& scene,
+                 const FrameHook& hook) {
   mpm::BuiltScene<Dim> built = mpm::build_scene<Dim>(scene);
   Trajectory t;
   TrajectoryMesh& m = t.mesh;
@@ -96,9 +97,26 @@ Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm
     if (stress)
       for (double s : solver.von_mises_stress()) stress->push_back(static_cast<float>(s));
   };
+  std::vector<double> hook_x, hook_v;
+  auto perturb = [&](int frame) {
+    if (!hook) return;
+    const mpm::Particles<Dim>& p = solver.particles();
+    hook_x.resize(static_cast<size_t>(p.size()) * Dim);
+    hook_v.resize(hook_x.size());
+    for (int32_t i = 0; i < p.size(); ++i)
+      for (int a = 0; a < Dim; ++a) {
+        hook_x[static_cast<size_t>(i) * Dim + a] = p.x[i][a];
+        hook_v[static_cast<size_t>(i) * Dim + a] = p.v[i][a];
+      }
+    hook(frame, hook_x, hook_v);
+    for (int32_t i = 0; i < p.size(); ++i)
+      solver.set_velocity(i,
+                          Eigen::Map<const mpm::Vec<Dim>>(&hook_v[static_cast<size_t>(i) * Dim]));
+  };
   record();
   Stopwatch clock;
   for (int k = 1; k < family.frames; ++k) {
+    perturb(k - 1);
     solver.advance_to(family.frame_dt * k);
     record();
   }
@@ -110,7 +128,7 @@ Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm
 }  // namespace
 
 Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
-                      const std::string& work_prefix) {
+                      const std::string& work_prefix, const FrameHook& hook) {
   const SingleThreadedSolve single;
   const int64_t traj_seed = trajectory_seed(seed, index, attempt);
   Rng rng(static_cast<uint64_t>(traj_seed));
@@ -129,7 +147,8 @@ Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, i
     if (body["shape"].value("type", "") == "mesh")
       body["shape"]["path"] =
           fs::path(body["shape"]["path"].get<std::string>()).filename().string();
-  Trajectory t = family.dim == 2 ? solve<2>(family, draw, scene) : solve<3>(family, draw, scene);
+  Trajectory t =
+      family.dim == 2 ? solve<2>(family, draw, scene, hook) : solve<3>(family, draw, scene, hook);
   t.seed = traj_seed;
   t.parameters =
       Json{{"family", family.family},    {"index", index}, {"attempt", attempt}, {"run_seed", seed},

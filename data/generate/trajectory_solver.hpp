@@ -14,10 +14,19 @@
 
 namespace bsms::generate {
 
+// A change to the state between recorded frames, for experiments on the solver's own
+// predictability: called after frame `frame` is recorded and before the solve goes on to frame + 1,
+// with the particles' (= mesh nodes') positions x and velocities v, flat [P * dim] in m and m/s.
+// The velocities it leaves in v are the solver's from then on (positions are read only).
+using FrameHook =
+    std::function<void(int frame, const std::vector<double>& x, std::vector<double>& v)>;
+
 // Draw `attempt` of global trajectory `index`, solved single-threaded: mesh, node types, bodies,
-// fields [T, N, width]. Throws NumericalError when the solve is unstable.
+// fields [T, N, width]. Throws NumericalError when the solve is unstable. `hook`, when set, may
+// perturb the velocities at each recorded frame (see FrameHook); without it the solve is the one
+// bsms generate stores.
 Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
-                      const std::string& work_prefix);
+                      const std::string& work_prefix, const FrameHook& hook = {});
 
 // One trajectory: draws the scene of global index `index` (redrawing unstable draws), solves it
 // single-threaded and returns it with its node types, bodies and fields. `work_prefix` names

@@ -92,6 +92,9 @@ class MpmSolver {
 
   Diagnostics<Dim> diagnostics() const;
   const Particles<Dim>& particles() const { return particles_; }
+  // Replaces particle p's velocity (m/s) between steps, e.g. to perturb a state in an experiment on
+  // the solver's own predictability. Under APIC the affine matrix B is kept as it was.
+  void set_velocity(int32_t p, const Vec<Dim>& v) { particles_.v.at(static_cast<size_t>(p)) = v; }
   const BackgroundMesh<Dim>& background() const { return bg_; }
   const TransferKernel<Dim>& kernel() const { return kernel_; }
   std::vector<double> von_mises_stress() const;  // [P], Pa

@@ -1,11 +1,13 @@
-// bsms experiment heat-sticks|zero-shot|seeding|long-rollout: the hard-case experiments, each a
-// report section (OUT/<name>.md, OUT/plots/*.png) and OUT/metrics.json.
+// bsms experiment heat-sticks|zero-shot|seeding|long-rollout|predictability: the hard-case
+// experiments and the solver's predictability, each a report section (OUT/<name>.md,
+// OUT/plots/*.png) and OUT/metrics.json.
 #include <iostream>
 #include <memory>
 
 #include "cli/command.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/experiments/heat_sticks.hpp"
+#include "pipeline/experiments/predictability.hpp"
 
 namespace {
 
@@ -37,7 +39,8 @@ std::shared_ptr<bsms::HardCaseRequest> add_common(CLI::App& sub) {
 }
 
 BSMS_COMMAND(
-    "experiment", "hard-case experiments: heat-sticks, zero-shot, seeding, long-rollout",
+    "experiment",
+    "hard-case experiments: heat-sticks, zero-shot, seeding, long-rollout; predictability",
     [](CLI::App& sub) {
       sub.require_subcommand(1);
       {
@@ -118,6 +121,58 @@ BSMS_COMMAND(
           const bsms::cli::RemoveOnFailure cleanup(r->out);
           bsms::long_rollout_experiment(*r, *data, *hard);
           std::cout << r->out << "/long_rollout.md\n";
+        });
+      }
+      {
+        auto o = std::make_shared<bsms::PredictabilityOptions>();
+        CLI::App* p = sub.add_subcommand(
+            "predictability",
+            "re-solve a generated dataset with random one-step body errors (kicks): the rollout "
+            "error that a model with that one-step error and perfect physics otherwise reaches");
+        p->add_option("--data", o->data, "dataset folder written by bsms generate")->required();
+        p->add_option("--out", o->out, "output folder (metrics.json, predictability.md, plots/)")
+            ->required();
+        p->add_option("--split", o->split, "dataset split")->capture_default_str();
+        p->add_option("--trajectories", o->max_trajectories, "at most K trajectories (0 = all)")
+            ->check(CLI::NonNegativeNumber);
+        p->add_option("--run", o->run,
+                      "trained run: base error from RUN/rollout_one_step/metrics.json (bsms "
+                      "rollout --one-step), its RUN/rollout curve drawn beside");
+        p->add_option("--centre", o->centre,
+                      "base error of each body's centre per frame, m (RMS per component)")
+            ->check(CLI::PositiveNumber);
+        p->add_option("--rotation", o->rotation,
+                      "base error from each body's spin per frame, m (RMS per component)")
+            ->check(CLI::NonNegativeNumber);
+        p->add_option("--scales", o->scales, "multiples of the base error, ascending")
+            ->delimiter(',')
+            ->capture_default_str();
+        p->add_option("--correlation", o->correlation,
+                      "correlation of the persistent rows' kicks between frames, in [0, 1) "
+                      "(default: as long as the run's one-step errors persist; 0: no such rows)")
+            ->check(CLI::Range(0.0, 0.999));
+        p->add_option("--draws", o->draws, "kick sequences per trajectory and scale")
+            ->check(CLI::Range(1, 1000))
+            ->capture_default_str();
+        p->add_option("--target", o->target, "RMSE-all / constant velocity asked for")
+            ->check(CLI::PositiveNumber)
+            ->capture_default_str();
+        p->add_option("--seed", o->seed, "seed of the kicks")->capture_default_str();
+        bsms::cli::add_threads_option(*p, o->threads);
+        p->footer(
+            "Example: bsms experiment predictability --data runs/long/data --run runs/slip/long "
+            "--out runs/predictability");
+        p->callback([o] {
+          const bsms::cli::RemoveOnFailure cleanup(o->out);
+          const bsms::Json m = bsms::predictability_experiment(*o);
+          std::cout << "predictability (" << m["trajectories"].get<int64_t>() << " trajectories, "
+                    << m["wall_s"].get<double>() << " s): RMSE-all / "
+                    << "constant velocity";
+          for (const auto& row : m["points"])
+            std::cout << "\n  " << row["scale"].get<double>() << "x "
+                      << row["mode"].get<std::string>() << ": "
+                      << row["rmse_all_over_constant_velocity"].dump();
+          std::cout << "\n  -> " << o->out << "/predictability.md\n";
         });
       }
     });

@@ -309,6 +309,39 @@ TEST(Generate, OnlyRequestedFieldsAreStored) {
   EXPECT_EQ(t.fields.count("world_pos"), 1u);
 }
 
+TEST(Generate, FrameHookChangesTheVelocitiesTheSolveGoesOnFrom) {
+  const FamilyConfig family = small_disks();
+  const Trajectory plain = solve_draw(family, 3, 0, 0, "/tmp/bsms_generate_test_unused");
+  const int64_t n = plain.mesh.num_nodes();
+  // A hook that leaves the velocities as they are changes nothing, bit for bit.
+  int calls = 0;
+  const Trajectory same =
+      solve_draw(family, 3, 0, 0, "/tmp/bsms_generate_test_unused",
+                 [&](int frame, const std::vector<double>& x, std::vector<double>& v) {
+                   EXPECT_EQ(frame, calls++);
+                   EXPECT_EQ(x.size(), static_cast<size_t>(n * 2));
+                   EXPECT_EQ(v.size(), x.size());
+                 });
+  EXPECT_EQ(calls, 5);  // after frames 0..4, before the solve goes on to 1..5
+  EXPECT_EQ(same.fields.at("world_pos"), plain.fields.at("world_pos"));
+  // A uniform velocity added after frame 2 moves every node by dv * frame_dt over frame 3 (a
+  // Galilean shift: the elastic forces do not see it; the disks are away from the walls).
+  const double dv[2] = {0.01, -0.02};
+  const Trajectory kicked =
+      solve_draw(family, 3, 0, 0, "/tmp/bsms_generate_test_unused",
+                 [&](int frame, const std::vector<double>&, std::vector<double>& v) {
+                   if (frame != 2) return;
+                   for (size_t k = 0; k < v.size(); ++k) v[k] += dv[k % 2];
+                 });
+  const auto& a = plain.fields.at("world_pos");
+  const auto& b = kicked.fields.at("world_pos");
+  for (int64_t k = 0; k < 3 * n * 2; ++k) ASSERT_EQ(a[k], b[k]) << "before the kick, value " << k;
+  double shift[2] = {0, 0};
+  for (int64_t i = 0; i < n; ++i)
+    for (int c = 0; c < 2; ++c) shift[c] += (b[(3 * n + i) * 2 + c] - a[(3 * n + i) * 2 + c]) / n;
+  for (int c = 0; c < 2; ++c) EXPECT_NEAR(shift[c], dv[c] * family.frame_dt, 0.03 * 0.02 * 0.04);
+}
+
 TEST(Generate, ResumeAfterInterruptionGivesTheSameDataset) {
   const FamilyConfig family = small_disks();
   GenerateOptions o;
