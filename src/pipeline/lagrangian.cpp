@@ -303,25 +303,32 @@ MomentumGroups momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh&
   return out;
 }
 
-torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
-  if (!batch.group.defined() || batch.num_groups == 0) return accel;
-  const int64_t groups = batch.num_groups, dim = accel.size(1);
-  const auto inside = (batch.group >= 0).to(accel.dtype()).unsqueeze(1);  // [N, 1]
-  const auto g = batch.group.clamp_min(0);
-  const auto m = batch.mass.to(accel.dtype()).unsqueeze(1) * inside;  // [N, 1], 0 outside
-  auto sum = [&](const torch::Tensor& v) {                            // [N, k] -> [G, k], per group
-    return torch::zeros({groups, v.size(1)}, v.options()).index_add(0, g, v);
+namespace {
+
+// `v` less, on each group of `group` (-1: none), the weighted mean along the axes the group keeps
+// and, where it keeps the spin, the rigid rotation about its weighted centre of `x` that fits what
+// is left: the weighted orthogonal projection onto motions without those parts. `kept`
+// [G, dim + 1] (undefined: all); `weight` [N].
+torch::Tensor remove_group_motion(const torch::Tensor& group, int64_t groups,
+                                  const torch::Tensor& weight, const torch::Tensor& conserved,
+                                  const torch::Tensor& position, const torch::Tensor& v) {
+  const int64_t dim = v.size(1);
+  const auto inside = (group >= 0).to(v.dtype()).unsqueeze(1);  // [N, 1]
+  const auto g = group.clamp_min(0);
+  const auto m = weight.to(v.dtype()).unsqueeze(1) * inside;  // [N, 1], 0 outside
+  auto sum = [&](const torch::Tensor& t) {                    // [N, k] -> [G, k], per group
+    return torch::zeros({groups, t.size(1)}, t.options()).index_add(0, g, t);
   };
   // Which momenta each group keeps, [G, dim + 1] (all of them without `conserved`).
-  const auto kept = batch.conserved.defined() ? batch.conserved.to(accel.dtype())
-                                              : torch::ones({groups, dim + 1}, accel.options());
+  const auto kept =
+      conserved.defined() ? conserved.to(v.dtype()) : torch::ones({groups, dim + 1}, v.options());
   const auto total = sum(m).clamp_min(1e-30);  // [G, 1]
-  const auto mean = sum(m * accel) / total * kept.slice(1, 0, dim);
-  auto out = accel - mean.index_select(0, g) * inside;
+  const auto mean = sum(m * v) / total * kept.slice(1, 0, dim);
+  auto out = v - mean.index_select(0, g) * inside;
   if (dim < 2) return out;
   // The angular part: only groups that keep it (kept.select(1, dim) is 1) lose it.
   const auto spin = kept.select(1, dim).unsqueeze(1);  // [G, 1]
-  const auto x = batch.cur.to(accel.dtype());
+  const auto x = position.to(v.dtype());
   const auto r = (x - (sum(m * x) / total).index_select(0, g)) * inside;  // [N, dim]
   if (dim == 2) {
     const auto rx = r.select(1, 0).unsqueeze(1), ry = r.select(1, 1).unsqueeze(1);
@@ -331,15 +338,30 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
     const auto alpha = (torque / inertia * spin).index_select(0, g);  // [N, 1]
     return out - alpha * torch::cat({-ry, rx}, 1);
   }
-  // 3-D: inertia tensor sum m (|r|^2 I - r r^T), alpha = I^-1 torque, a -= alpha x r.
+  // 3-D: inertia tensor sum m (|r|^2 I - r r^T), alpha = I^-1 torque, v -= alpha x r.
   const auto torque = sum(m * torch::cross(r, out, 1));                // [G, 3]
   const auto rr = (r.unsqueeze(2) * r.unsqueeze(1)).reshape({-1, 9});  // [N, 9]
-  const auto eye = torch::eye(3, accel.options()).reshape({1, 9});
+  const auto eye = torch::eye(3, v.options()).reshape({1, 9});
   const auto inertia = sum(m * (r.square().sum(1, true) * eye - rr)).reshape({groups, 3, 3});
   // A degenerate group (one node, or nodes on a line) has a singular inertia tensor: the
   // pseudo-inverse leaves the rotation about that axis alone (its torque is ~0 there anyway).
   const auto alpha = torch::linalg::pinv(inertia).matmul(torque.unsqueeze(2)).squeeze(2) * spin;
   return out - torch::cross(alpha.index_select(0, g), r, 1);
+}
+
+}  // namespace
+
+torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
+  if (!batch.group.defined() || batch.num_groups == 0) return accel;
+  return remove_group_motion(batch.group, batch.num_groups, batch.mass, batch.conserved, batch.cur,
+                             accel);
+}
+
+torch::Tensor rigid_part(const Batch& batch, const torch::Tensor& v) {
+  if (!batch.body.defined() || batch.num_bodies == 0) return torch::zeros_like(v);
+  const auto ones = torch::ones({v.size(0)}, v.options());
+  const auto inside = (batch.body >= 0).to(v.dtype()).unsqueeze(1);
+  return (v - remove_group_motion(batch.body, batch.num_bodies, ones, {}, batch.cur, v)) * inside;
 }
 
 void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
@@ -422,7 +444,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
                                     const std::vector<torch::Tensor>& noise) const {
   Batch b;
   std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises, groups,
-      masses, conserved;
+      masses, conserved, bodies;
   std::vector<MultilevelTensors> graphs;
   graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
@@ -499,6 +521,19 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
                        inv_scale);
     world_pos.push_back(cur * inv_scale);
     masks.push_back(mask);
+    {
+      std::vector<int64_t> body(static_cast<size_t>(n), -1);
+      int64_t count = 0;
+      for (int64_t i = 0; i < n; ++i) {
+        if (!predicted[i]) continue;
+        const int64_t id = mesh.body_id.empty() ? 0 : mesh.body_id[i];
+        if (id < 0) continue;
+        body[i] = b.num_bodies + id;
+        count = std::max(count, id + 1);
+      }
+      b.num_bodies += count;
+      bodies.push_back(torch::from_blob(body.data(), {n}, torch::kInt64).clone());
+    }
     curs.push_back(cur);
     prevs.push_back(s.prev);
     if (spec_.has_momentum()) {
@@ -539,6 +574,7 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
   b.cur = torch::cat(curs, 0);
   b.prev = torch::cat(prevs, 0);
   if (!noises.empty()) b.noise = torch::cat(noises, 0);
+  b.body = torch::cat(bodies, 0);
   if (!groups.empty()) {
     b.group = torch::cat(groups, 0);
     b.mass = torch::cat(masses, 0);

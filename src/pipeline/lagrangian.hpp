@@ -140,6 +140,10 @@ struct Batch {
   torch::Tensor mass;       // [N] float32
   torch::Tensor conserved;  // [num_groups, dim + 1] float32, 1 = kept
   int64_t num_groups = 0;
+  // Each predicted node's body (mesh body_id, unique in the batch; -1: not predicted), for the
+  // loss's rigid part (FeatureConfig::rigid_loss_weight).
+  torch::Tensor body;  // [N] int64
+  int64_t num_bodies = 0;
 };
 
 // The momentum groups of one state (see LagrangianSpec::momentum_radius). A group with a
@@ -164,6 +168,12 @@ std::vector<float> lumped_masses(const TrajectoryMesh& mesh);
 // mass-weighted orthogonal projection onto accelerations that keep those momenta.
 // Differentiable; identity when the batch has no group.
 torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel);
+// The rigid part of `v` [N, dim] on each body of the batch (Batch::body; nodes weighted equally,
+// positions Batch::cur): per body, the mean of v plus the rigid rotation about the body's centroid
+// that fits v best (2-D and 3-D), i.e. the orthogonal projection onto rigid motions. Zero on
+// nodes of no body. What a rollout's centre and rotation errors (body_motion_error.hpp) are made
+// of, step by step. Differentiable.
+torch::Tensor rigid_part(const Batch& batch, const torch::Tensor& v);
 
 class LagrangianAdapter {
  public:

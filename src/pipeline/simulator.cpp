@@ -63,7 +63,8 @@ torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
   return model_->forward(input_norm_->normalize(batch.inputs), batch.positions, batch.graph);
 }
 
-torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target) {
+torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& target,
+                                     double rigid_weight) {
   auto prediction = forward_normalized(batch);
   auto goal = target;
   if (batch.num_groups > 0) {
@@ -73,7 +74,14 @@ torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& ta
         output_norm_->normalize(project_momentum(batch, output_norm_->inverse(prediction)));
     goal = project_momentum(batch, target);
   }
-  const auto error = (prediction - output_norm_->normalize(goal)).pow(2).sum(1);
+  const auto diff = prediction - output_norm_->normalize(goal);
+  auto error = diff.pow(2).sum(1);
+  if (rigid_weight > 0) {
+    // The rigid part of the raw error, measured in the normalised units of the loss.
+    const auto scale = output_norm_->std().to(diff.dtype());
+    const auto rigid = rigid_part(batch, diff * scale) / scale;
+    error = error + rigid_weight * rigid.pow(2).sum(1);
+  }
   return error.index({batch.mask}).mean();
 }
 

@@ -39,8 +39,10 @@ class LearnedSimulator : public torch::nn::Module {
 
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
   // raw acceleration [N, dim]; the normalizers are settled beforehand (accumulate_statistics).
-  // On the batch's free groups both sides are projected first (project_momentum).
-  torch::Tensor loss(const Batch& batch, const torch::Tensor& target);
+  // On the batch's free groups both sides are projected first (project_momentum). With
+  // `rigid_weight` w > 0 the rigid part of each body's error (rigid_part, taken in raw units and
+  // normalised back) counts 1 + w times.
+  torch::Tensor loss(const Batch& batch, const torch::Tensor& target, double rigid_weight = 0.0);
   // Adds the batch's inputs and (predicted nodes') targets to the normalizer statistics.
   void accumulate_statistics(const Batch& batch, const torch::Tensor& target);
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the

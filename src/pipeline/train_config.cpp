@@ -109,6 +109,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.history_noise = f.opt<std::string>("history_noise", c.features.history_noise);
     require(c.features.history_noise == "off" || c.features.history_noise == "walk",
             f.context("history_noise"), "\"off\" or \"walk\"");
+    c.features.rigid_loss_weight = f.opt<double>("rigid_loss_weight", c.features.rigid_loss_weight);
+    require(c.features.rigid_loss_weight >= 0 && c.features.rigid_loss_weight <= 1000,
+            f.context("rigid_loss_weight"), "in [0, 1000] (extra weight of the rigid part)");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -185,6 +188,8 @@ Json to_json(const TrainConfig& c) {
   if (c.features.history != defaults.history) f["history"] = c.features.history;
   if (c.features.history_noise != defaults.history_noise)
     f["history_noise"] = c.features.history_noise;
+  if (c.features.rigid_loss_weight != defaults.rigid_loss_weight)
+    f["rigid_loss_weight"] = c.features.rigid_loss_weight;
   return j;
 }
 

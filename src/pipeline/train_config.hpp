@@ -74,6 +74,12 @@ struct FeatureConfig {
   // Training noise on those older velocities: "off" (the true ones; only x_t is noisy) or "walk"
   // (GNS's random walk back from x_t's noise, steps of noise_std / sqrt(history)).
   std::string history_noise = "off";
+  // Extra weight of the rigid part of the training error (Lagrangian data): per body, the part of
+  // the normalised acceleration error that a uniform acceleration plus a rigid spin explains
+  // (rigid_part in lagrangian.hpp) counts 1 + w times, the deformation part once. A rollout's
+  // error is mostly where bodies go and how they turn, a small share of the per-node loss beside
+  // the particles' own jitter. 0: off. The validation loss stays the plain one.
+  double rigid_loss_weight = 0.0;
 };
 
 struct OptimizerConfig {

@@ -372,7 +372,7 @@ TrainResult train(const TrainRequest& request) {
   FitHooks hooks;
   hooks.loss = [&](int64_t index) {
     const TrainBatch b = training_batch(index);
-    return simulator->loss(b.batch, b.target);
+    return simulator->loss(b.batch, b.target, config.features.rigid_loss_weight);
   };
   if (comm) {
     // The loss is a mean over predicted nodes: weighting each rank's gradient by its node count

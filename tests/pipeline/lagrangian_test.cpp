@@ -302,6 +302,45 @@ TEST(MomentumProjection, RemovesLinearAndAngularOnFreeGroupsOnly) {
   EXPECT_TRUE(torch::equal(project_momentum(none, a), a));
 }
 
+// The loss's rigid part: per body (nodes weighted equally), the orthogonal projection onto
+// uniform motions plus rigid spins about the body's centroid.
+TEST(RigidPart, IsTheOrthogonalProjectionOntoEachBodysRigidMotions) {
+  for (int dim : {2, 3}) {
+    for (uint64_t seed = 0; seed < 10; ++seed) {
+      SCOPED_TRACE("dim " + std::to_string(dim) + " seed " + std::to_string(seed));
+      Batch b = random_groups(dim, 3, 4 + static_cast<int>(seed % 4), 3, seed);
+      b.body = b.group;
+      b.num_bodies = b.num_groups;
+      b.num_groups = 0;  // no momentum groups: only bodies
+      const int64_t n = b.cur.size(0);
+      const auto in = b.body >= 0;
+      const auto v = torch::randn({n, dim}, torch::kFloat64);
+      const auto r = rigid_part(b, v);
+      // Zero off the bodies; idempotent; orthogonal with equal weights.
+      EXPECT_EQ(r.index({~in}).abs().max().item<double>(), 0.0);
+      EXPECT_LT((rigid_part(b, r) - r).abs().max().item<double>(), 1e-12);
+      EXPECT_LT(std::abs(((v - r) * r).index({in}).sum().item<double>()), 1e-10);
+      // What is left has no mean and no torque on any body (equal weights).
+      Batch unit = b;
+      unit.group = b.body;
+      unit.num_groups = b.num_bodies;
+      unit.mass = torch::ones({n}, torch::kFloat32);
+      expect_conserving(unit, v - r, 1e-10);
+      // A rigid motion of every body is its own rigid part.
+      auto rigid = torch::randn({1, dim}, torch::kFloat64).expand({n, dim}).clone();
+      if (dim == 2) {
+        rigid += 0.7 * torch::stack({-b.cur.select(1, 1), b.cur.select(1, 0)}, 1);
+      } else {
+        const auto w = torch::randn({1, 3}, torch::kFloat64).expand({n, 3});
+        rigid += torch::cross(w, b.cur, 1);
+      }
+      EXPECT_LT((rigid_part(b, rigid) - rigid).index({in}).abs().max().item<double>(), 1e-12);
+    }
+  }
+  Batch none;
+  EXPECT_EQ(rigid_part(none, torch::ones({3, 2})).abs().max().item<double>(), 0.0);
+}
+
 // Groups at slip walls keep only some momenta: the projection removes exactly those and is still
 // the mass-weighted orthogonal projection.
 TEST(MomentumProjection, KeepsOnlyTheMomentaEachGroupConserves) {

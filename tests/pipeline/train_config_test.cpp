@@ -71,6 +71,10 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"history": 3,
     "history_noise": "walk"}})"),
             "");
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"rigid_loss_weight": -1}})")
+                .find("features.rigid_loss_weight"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"rigid_loss_weight": 4}})"), "");
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "walls"}})")
                 .find("features.momentum"),
             std::string::npos);
