@@ -306,9 +306,9 @@ MomentumGroups momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh&
 namespace {
 
 // `v` less, on each group of `group` (-1: none), the weighted mean along the axes the group keeps
-// and, where it keeps the spin, the rigid rotation about its weighted centre of `x` that fits what
-// is left: the weighted orthogonal projection onto motions without those parts. `kept`
-// [G, dim + 1] (undefined: all); `weight` [N].
+// and, where it keeps the spin, the rigid rotation about its weighted centre of `position` that
+// fits what is left: the weighted orthogonal projection onto motions without those parts.
+// `conserved` [G, dim + 1], 1 = kept (undefined: all kept); `weight` [N].
 torch::Tensor remove_group_motion(const torch::Tensor& group, int64_t groups,
                                   const torch::Tensor& weight, const torch::Tensor& conserved,
                                   const torch::Tensor& position, const torch::Tensor& v) {

@@ -14,6 +14,7 @@
 #include "data/generate/family.hpp"
 #include "data/generate/generator.hpp"
 #include "pipeline/experiments/predictability.hpp"
+#include "pipeline/rollout_metrics.hpp"
 
 namespace {
 
@@ -181,6 +182,30 @@ TEST(Predictability, KicksLandAtTheirSizeAndGrowTheRolloutError) {
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("generate.json"), std::string::npos) << e.what();
+  }
+  // A run whose one-step rollout was made on other trajectories gives no base error here.
+  const fs::path run = fresh_dir("run");
+  fs::create_directories(run / "rollout_one_step");
+  RolloutMetrics other;
+  other.model = "bsms";
+  other.split = "test";
+  other.one_step = true;
+  other.data = (fs::path(o.out) / "metrics.json").string();  // an existing file, not the data
+  other.rmse_all_parts = MotionRmse{1e-4, 1e-4, 1e-4};
+  {
+    std::ofstream f(run / "rollout_one_step" / "metrics.json");
+    f << to_json(other).dump();
+  }
+  PredictabilityOptions elsewhere = o;
+  elsewhere.centre = 0;
+  elsewhere.rotation = -1;
+  elsewhere.run = run.string();
+  elsewhere.out = fresh_dir("elsewhere").string();
+  try {
+    predictability_experiment(elsewhere);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("a one-step rollout on"), std::string::npos) << e.what();
   }
   PredictabilityOptions bad_scales = o;
   bad_scales.scales = {2.0, 1.0};

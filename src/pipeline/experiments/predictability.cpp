@@ -364,7 +364,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
 
   // The base one-step error: given, or the run's one-step body error.
   double centre = o.centre, rotation = o.rotation;
-  std::string base_source = "given";
+  std::string base_source = "given", base_data;
   std::optional<RolloutMetrics> model_rollout;
   if (!o.run.empty()) {
     const fs::path one_step = fs::path(o.run) / "rollout_one_step" / "metrics.json";
@@ -380,6 +380,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
       if (centre <= 0) centre = m.rmse_all_parts->centre;
       if (rotation < 0) rotation = m.rmse_all_parts->rotation;
       base_source = one_step.string();
+      base_data = m.data;
     }
     const fs::path rollout = fs::path(o.run) / "rollout" / "metrics.json";
     if (fs::exists(rollout)) model_rollout = read_rollout_metrics(rollout.string());
@@ -409,6 +410,16 @@ Json predictability_experiment(const PredictabilityOptions& o) {
       generate::parse_family(gen["config"], manifest.string() + " (config)");
 
   const Dataset data = Dataset::open_split(o.data, o.split);
+  if (!base_data.empty()) {
+    // The base error must be the run's error on these trajectories.
+    // (A path that no longer resolves, e.g. relative to another folder, is let through.)
+    std::error_code same_ec;
+    if (fs::exists(base_data, same_ec) && !fs::equivalent(base_data, data.location(), same_ec))
+      throw InputError(base_source + ": a one-step rollout on " + base_data + ", not on " +
+                       data.location() + "; roll the run out on it (bsms rollout " + o.run +
+                       " --data " + o.data + " --split " + o.split +
+                       " --one-step) or give --centre and --rotation");
+  }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": no world_pos field; a Lagrangian dataset is needed");
   const int64_t count = o.max_trajectories > 0
