@@ -134,7 +134,6 @@ struct StoredTrajectory {
 struct PointResult {
   std::vector<double> step_sq;  // per predicted step, the MSE summed over draws
   BodyMotionError parts, first_parts;
-  int64_t part_steps = 0;
   int draws_done = 0, failed = 0;
   double sq = 0.0;  // per-step MSE summed over steps and draws
   int64_t steps = 0;
@@ -325,7 +324,6 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
         const BodyMotionError e = body_motion_error(pred[f + 1], truth[f + 1], mesh.body_id);
         pr.parts += e;
         if (f == 1) pr.first_parts += e;
-        ++pr.part_steps;
       }
       ++pr.draws_done;
     }
@@ -552,7 +550,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   for (size_t p = 0; p < points.size(); ++p) {
     std::vector<double> step_sq(max_steps, 0.0), step_count(max_steps, 0.0);
     BodyMotionError parts, first;
-    double part_steps = 0, first_count = 0, sq = 0, steps = 0;
+    double first_count = 0, sq = 0, steps = 0;
     int failed = 0;
     TrajectoryRmse per;
     for (const auto& r : results) {
@@ -564,7 +562,6 @@ Json predictability_experiment(const PredictabilityOptions& o) {
         step_count[s] += pr.draws_done;
       }
       parts += pr.parts;
-      part_steps += static_cast<double>(pr.part_steps);
       first += pr.first_parts;
       first_count += pr.draws_done;
       sq += pr.sq;
@@ -600,9 +597,9 @@ Json predictability_experiment(const PredictabilityOptions& o) {
                  interval ? Json::array({interval->lo, interval->hi}) : Json(nullptr)},
                 {"rmse_per_step", curve},
                 {"rmse_all_parts",
-                 {{"centre", rms(parts.centre, part_steps)},
-                  {"rotation", rms(parts.rotation, part_steps)},
-                  {"deformation", rms(parts.deformation, part_steps)}}},
+                 {{"centre", rms(parts.centre, steps)},
+                  {"rotation", rms(parts.rotation, steps)},
+                  {"deformation", rms(parts.deformation, steps)}}},
                 {"first_step_parts",
                  {{"centre", rms(first.centre, first_count)},
                   {"rotation", rms(first.rotation, first_count)},
@@ -627,9 +624,8 @@ Json predictability_experiment(const PredictabilityOptions& o) {
           << (interval ? " [" + format_number(interval->lo, 3) + "–" +
                              format_number(interval->hi, 3) + "]"
                        : std::string())
-          << " | " << sci(rms(parts.centre, part_steps)) << " / "
-          << sci(rms(parts.rotation, part_steps)) << " / "
-          << sci(rms(parts.deformation, part_steps)) << " | " << failed << " |\n";
+          << " | " << sci(rms(parts.centre, steps)) << " / " << sci(rms(parts.rotation, steps))
+          << " / " << sci(rms(parts.deformation, steps)) << " | " << failed << " |\n";
   }
   Json crossings = Json::object();
   for (const auto& [mode, sweep] : sweeps)
