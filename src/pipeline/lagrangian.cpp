@@ -349,6 +349,22 @@ torch::Tensor remove_group_motion(const torch::Tensor& group, int64_t groups,
   return out - torch::cross(alpha.index_select(0, g), r, 1);
 }
 
+// Each node's body (mesh body_id; 0 for all without body ids) where the node is predicted, -1
+// elsewhere, [N] int64; `count`: one more than the largest id.
+torch::Tensor predicted_bodies(const TrajectoryMesh& mesh, bool public_layout, int64_t* count) {
+  const int64_t n = mesh.num_nodes();
+  std::vector<int64_t> body(static_cast<size_t>(n), -1);
+  *count = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (!is_predicted_node(mesh.node_type[i], public_layout)) continue;
+    const int64_t id = mesh.body_id.empty() ? 0 : mesh.body_id[i];
+    if (id < 0) continue;
+    body[i] = id;
+    *count = std::max(*count, id + 1);
+  }
+  return torch::from_blob(body.data(), {n}, torch::kInt64).clone();
+}
+
 }  // namespace
 
 torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
@@ -362,6 +378,23 @@ torch::Tensor rigid_part(const Batch& batch, const torch::Tensor& v) {
   const auto ones = torch::ones({v.size(0)}, v.options());
   const auto inside = (batch.body >= 0).to(v.dtype()).unsqueeze(1);
   return (v - remove_group_motion(batch.body, batch.num_bodies, ones, {}, batch.cur, v)) * inside;
+}
+
+torch::Tensor LagrangianAdapter::scale_rigid_noise(const FrameState& state,
+                                                   const torch::Tensor& noise,
+                                                   double rigid_scale) const {
+  if (rigid_scale == 1.0 || !noise.defined()) return noise;
+  int64_t count = 0;
+  const auto body = predicted_bodies(*state.mesh, spec_.public_layout, &count);
+  if (count == 0) return noise;
+  const auto first = noise.narrow(1, 0, spec_.dim);
+  const auto ones = torch::ones({first.size(0)}, first.options());
+  const auto inside = (body >= 0).to(first.dtype()).unsqueeze(1);
+  const auto rigid =
+      (first - remove_group_motion(body, count, ones, {}, state.cur, first)) * inside;
+  auto out = noise.clone();
+  out.narrow(1, 0, spec_.dim).sub_((1.0 - rigid_scale) * rigid);
+  return out;
 }
 
 void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
@@ -522,17 +555,10 @@ Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
     world_pos.push_back(cur * inv_scale);
     masks.push_back(mask);
     {
-      std::vector<int64_t> body(static_cast<size_t>(n), -1);
       int64_t count = 0;
-      for (int64_t i = 0; i < n; ++i) {
-        if (!predicted[i]) continue;
-        const int64_t id = mesh.body_id.empty() ? 0 : mesh.body_id[i];
-        if (id < 0) continue;
-        body[i] = b.num_bodies + id;
-        count = std::max(count, id + 1);
-      }
+      const auto body = predicted_bodies(mesh, spec_.public_layout, &count);
+      bodies.push_back(torch::where(body >= 0, body + b.num_bodies, body));
       b.num_bodies += count;
-      bodies.push_back(torch::from_blob(body.data(), {n}, torch::kInt64).clone());
     }
     curs.push_back(cur);
     prevs.push_back(s.prev);

@@ -187,6 +187,14 @@ class LagrangianAdapter {
   // by sqrt(history).
   Batch make_batch(const std::vector<FrameState>& states,
                    const std::vector<torch::Tensor>& noise = {}) const;
+  // Training noise `noise` ([N, dim] or [N, history * dim], as make_batch takes it) for `state`
+  // with the rigid part of its first dim columns (x_t's noise) on each body scaled by
+  // `rigid_scale`: per body of predicted nodes (mesh body_id), the uniform translation plus the
+  // rigid rotation about the body's centroid (positions state.cur, nodes weighted equally) that
+  // fits the noise best, the projection rigid_part makes. 0 leaves noise that only deforms the
+  // bodies; 1 returns `noise` unchanged.
+  torch::Tensor scale_rigid_noise(const FrameState& state, const torch::Tensor& noise,
+                                  double rigid_scale) const;
   // Target acceleration (first order: velocity) for the batch from next positions [N, dim]
   // (concatenated like the batch). With training noise n on the current positions, the target next
   // position is next + (1 - noise_gamma) n (MeshGraphNets' convention): gamma 1 asks the model to

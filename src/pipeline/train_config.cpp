@@ -112,6 +112,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.rigid_loss_weight = f.opt<double>("rigid_loss_weight", c.features.rigid_loss_weight);
     require(c.features.rigid_loss_weight >= 0 && c.features.rigid_loss_weight <= 1000,
             f.context("rigid_loss_weight"), "in [0, 1000] (extra weight of the rigid part)");
+    c.features.noise_rigid_scale = f.opt<double>("noise_rigid_scale", c.features.noise_rigid_scale);
+    require(c.features.noise_rigid_scale >= 0 && c.features.noise_rigid_scale <= 1,
+            f.context("noise_rigid_scale"), "in [0, 1] (share of the noise's rigid part kept)");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -190,6 +193,8 @@ Json to_json(const TrainConfig& c) {
     f["history_noise"] = c.features.history_noise;
   if (c.features.rigid_loss_weight != defaults.rigid_loss_weight)
     f["rigid_loss_weight"] = c.features.rigid_loss_weight;
+  if (c.features.noise_rigid_scale != defaults.noise_rigid_scale)
+    f["noise_rigid_scale"] = c.features.noise_rigid_scale;
   return j;
 }
 

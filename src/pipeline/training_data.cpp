@@ -301,9 +301,12 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     states.push_back(s.state);
     nexts.push_back(s.next);
     if (noisy)
-      noise.push_back(torch::randn({s.state.cur.size(0), s.state.cur.size(1) * noise_width},
-                                   (*generators)[k], torch::kFloat32) *
-                      config.features.noise_std);
+      noise.push_back(adapter.scale_rigid_noise(
+          s.state,
+          torch::randn({s.state.cur.size(0), s.state.cur.size(1) * noise_width}, (*generators)[k],
+                       torch::kFloat32) *
+              config.features.noise_std,
+          config.features.noise_rigid_scale));
     if (unroll > 0) {  // the truth at t-1 and t, and how far the rollout drifted from it
       const int64_t frames = s.truth.size(0);
       truth_prevs.push_back(s.truth[frames - 3]);

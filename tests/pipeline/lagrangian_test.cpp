@@ -492,6 +492,54 @@ TEST(MomentumGroups, BodiesInRangeJoinWallsAndKinematicNodesRelease) {
   EXPECT_NEAR(mass[0], 0.0025 / 3.0, 1e-7);  // corner in two triangles: 2 x area/3 / 2
 }
 
+// features.noise_rigid_scale: the training noise's rigid part on each body (what rigid_part
+// finds) is scaled, its deformation part, the prescribed nodes' noise and the older velocities'
+// columns are left as they were.
+TEST(RigidNoise, ScalesOnlyEachBodysRigidPart) {
+  TrajectoryMesh mesh = three_squares();
+  mesh.node_type[5] = static_cast<int32_t>(NodeType::kFixed);  // body 1: one prescribed node
+  const auto cur = placed(mesh, {{0.2, 0.2}, {0.5, 0.6}, {0.8, 0.3}});
+  const FrameState state{nullptr, &mesh, cur, cur, {}, {}};
+  const int64_t n = mesh.num_nodes();
+  LagrangianSpec spec;
+  const LagrangianAdapter adapter(spec);
+  Batch b;  // the bodies as make_batch numbers them, for rigid_part
+  b.cur = cur.to(torch::kFloat64);
+  b.body = torch::tensor(std::vector<int64_t>(mesh.body_id.begin(), mesh.body_id.end()));
+  b.body[5] = -1;
+  b.num_bodies = 3;
+  const auto predicted = (b.body >= 0).unsqueeze(1);
+  // float32 noise of 2e-3: rounding ~1e-10 per value, so 2e-8 is ~1e-3 of the rigid part.
+  for (uint64_t seed = 0; seed < 5; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    torch::manual_seed(seed);
+    const auto noise = 2e-3 * torch::randn({n, 4}, torch::kFloat32);  // x_t's and one older
+    EXPECT_TRUE(adapter.scale_rigid_noise(state, noise, 1.0).equal(noise));
+    const auto x_t = noise.narrow(1, 0, 2).to(torch::kFloat64);
+    const auto rigid = rigid_part(b, x_t);
+    ASSERT_GT(rigid.abs().max().item<double>(), 1e-5);
+    for (double scale : {0.0, 0.5}) {
+      SCOPED_TRACE("scale " + std::to_string(scale));
+      const auto out = adapter.scale_rigid_noise(state, noise, scale);
+      ASSERT_EQ(out.sizes(), noise.sizes());
+      const auto out_t = out.narrow(1, 0, 2).to(torch::kFloat64);
+      // The rigid part scales; the deformation part stays.
+      EXPECT_LT((rigid_part(b, out_t) - scale * rigid).abs().max().item<double>(), 2e-8);
+      EXPECT_LT(((out_t - rigid_part(b, out_t)) - (x_t - rigid)).abs().max().item<double>(), 2e-8);
+      // Off the bodies and in the older columns: unchanged.
+      EXPECT_TRUE(out.narrow(1, 2, 2).equal(noise.narrow(1, 2, 2)));
+      EXPECT_TRUE(out[5].equal(noise[5]));
+      if (scale == 0.0) {  // no body keeps a mean
+        for (int64_t body = 0; body < 3; ++body) {
+          const auto mine = (b.body == body).unsqueeze(1).to(torch::kFloat64);
+          EXPECT_LT((out_t * mine).sum(0).abs().max().item<double>(), 2e-8);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(predicted.sum().item<int64_t>(), n - 1);
+}
+
 TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
   const std::string walls = R"("boundaries": [{"group": "left"}, {"group": "right"}])";
   auto why = [&](const std::string& scene, bool with_walls = true) {

@@ -75,6 +75,10 @@ TEST(TrainConfig, BadValuesNameTheKey) {
                 .find("features.rigid_loss_weight"),
             std::string::npos);
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"rigid_loss_weight": 4}})"), "");
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"noise_rigid_scale": 1.5}})")
+                .find("features.noise_rigid_scale"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_rigid_scale": 0}})"), "");
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "walls"}})")
                 .find("features.momentum"),
             std::string::npos);
