@@ -8,6 +8,7 @@
 #include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/experiments/heat_sticks.hpp"
 #include "pipeline/experiments/predictability.hpp"
+#include "pipeline/number_format.hpp"
 
 namespace {
 
@@ -158,6 +159,10 @@ BSMS_COMMAND(
             ->check(CLI::PositiveNumber)
             ->capture_default_str();
         p->add_option("--seed", o->seed, "seed of the kicks")->capture_default_str();
+        p->add_option("--solver-set", o->solver_set,
+                      "scene.KEY=VALUE: re-solve with the family's scene changed (repeatable), "
+                      "scored against the stored frames, e.g. "
+                      "scene.background.element_size=0.041");
         bsms::cli::add_threads_option(*p, o->threads);
         p->footer(
             "Example: bsms experiment predictability --data runs/long/data --run runs/slip/long "
@@ -169,7 +174,10 @@ BSMS_COMMAND(
                     << m["wall_s"].get<double>() << " s): RMSE-all / "
                     << "constant velocity";
           for (const auto& row : m["points"])
-            std::cout << "\n  " << row["scale"].get<double>() << "x "
+            std::cout << "\n  "
+                      << (row["scale"].get<double>() > 0
+                              ? bsms::format_number(row["scale"].get<double>()) + "x "
+                              : std::string())
                       << row["mode"].get<std::string>() << ": "
                       << row["rmse_all_over_constant_velocity"].dump();
           std::cout << "\n  -> " << o->out << "/predictability.md\n";

@@ -210,6 +210,36 @@ TEST(Predictability, KicksLandAtTheirSizeAndGrowTheRolloutError) {
   PredictabilityOptions bad_scales = o;
   bad_scales.scales = {2.0, 1.0};
   EXPECT_THROW(predictability_experiment(bad_scales), InputError);
+
+  // --solver-set: the same background size again changes nothing (the altered row is 0 m);
+  // another size is another background mesh and another time step, a different solve.
+  PredictabilityOptions same = o;
+  same.scales = {1.0};
+  same.correlation = 0;
+  same.draws = 1;
+  same.solver_set = {"scene.background.element_size=0.06"};
+  same.out = fresh_dir("same").string();
+  const Json s = predictability_experiment(same);
+  ASSERT_EQ(s["points"].size(), 3u);  // independent, once, altered
+  const Json& unchanged = s["points"].back();
+  EXPECT_EQ(unchanged["mode"].get<std::string>(), "altered solver, no kicks");
+  EXPECT_EQ(unchanged["rmse_all"].get<double>(), 0.0);
+  PredictabilityOptions other_mesh = same;
+  other_mesh.solver_set = {"scene.background.element_size=0.055"};
+  other_mesh.out = fresh_dir("other_mesh").string();
+  const Json a = predictability_experiment(other_mesh);
+  const Json& altered = a["points"].back();
+  EXPECT_GT(altered["rmse_all"].get<double>(), 1e-5);
+  // The bodies still move as the scene says: far closer than constant velocity.
+  EXPECT_LT(altered["rmse_all_over_constant_velocity"].get<double>(), 0.5);
+  EXPECT_EQ(a["solver_set"][0].get<std::string>(), "scene.background.element_size=0.055");
+  for (const char* bad : {"background.element_size=0.05", "scene.background.size=0.05"}) {
+    SCOPED_TRACE(bad);
+    PredictabilityOptions wrong = same;
+    wrong.solver_set = {bad};
+    wrong.out = fresh_dir("wrong").string();
+    EXPECT_THROW(predictability_experiment(wrong), InputError);
+  }
 }
 
 }  // namespace

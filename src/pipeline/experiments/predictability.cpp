@@ -17,6 +17,7 @@
 #include <sstream>
 #include <thread>
 
+#include "core/config.hpp"
 #include "core/error.hpp"
 #include "core/hash.hpp"
 #include "core/runtime.hpp"
@@ -116,8 +117,13 @@ struct Point {
   double scale = 1.0;
   bool once = false;
   double rho = 0.0;  // correlation of the kicks between consecutive frames
+  // No kicks: the (altered, --solver-set) re-solve scored against the stored frames.
+  bool altered = false;
   std::string mode() const {
-    return once ? "once" : rho > 0 ? "every, persistent" : "every, independent";
+    return altered   ? "altered solver, no kicks"
+           : once    ? "once"
+           : rho > 0 ? "every, persistent"
+                     : "every, independent";
   }
 };
 
@@ -259,8 +265,12 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
   const int64_t n = mesh.num_nodes();
   const std::string where =
       "trajectory " + std::to_string(position) + " (index " + std::to_string(st.index) + ")";
-  const Trajectory reference =
-      generate::solve_draw(family, st.run_seed, st.index, st.attempt, work_prefix);
+  Trajectory reference;
+  try {
+    reference = generate::solve_draw(family, st.run_seed, st.index, st.attempt, work_prefix);
+  } catch (const NumericalError& e) {  // only an altered solver can fail here
+    throw NumericalError(where + ", re-solved with --solver-set: " + e.what());
+  }
   const std::vector<float>& ref = positions(reference, where);
   if (static_cast<int64_t>(ref.size()) != st.frames * n * dim)
     throw InputError(o.data + ": " + where + " re-solved to " + std::to_string(ref.size()) +
@@ -290,9 +300,28 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
 
   const auto bodies = free_bodies(mesh);
   result.points.resize(points.size());
+  // Scores `pred` [F, N, dim] against `against` like a rollout (frames 2 to the last).
+  auto score = [&](PointResult& pr, const at::Tensor& pred, const at::Tensor& against) {
+    for (int64_t f = 1; f + 1 < st.frames; ++f) {
+      const double mse = (pred[f + 1] - against[f + 1]).pow(2).mean().item<double>();
+      pr.step_sq[static_cast<size_t>(f - 1)] += mse;
+      pr.sq += mse;
+      ++pr.steps;
+      const BodyMotionError e = body_motion_error(pred[f + 1], against[f + 1], mesh.body_id);
+      pr.parts += e;
+      if (f == 1) pr.first_parts += e;
+    }
+    ++pr.draws_done;
+  };
   for (size_t p = 0; p < points.size(); ++p) {
     PointResult& pr = result.points[p];
     pr.step_sq.assign(static_cast<size_t>(std::max<int64_t>(st.frames - 2, 0)), 0.0);
+    if (points[p].altered) {  // the altered solve against the stored frames
+      const auto stored = torch::from_blob(const_cast<float*>(st.world_pos.data()),
+                                           {st.frames, n, dim}, torch::kFloat32);
+      score(pr, truth, stored);
+      continue;
+    }
     for (int d = 0; d < o.draws; ++d) {
       uint64_t h = splitmix64(o.seed);
       h = splitmix64(h ^ static_cast<uint64_t>(st.index));
@@ -314,18 +343,9 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
         continue;
       }
       const std::vector<float>& kx = positions(kicked, where);
-      const auto pred =
-          torch::from_blob(const_cast<float*>(kx.data()), {st.frames, n, dim}, torch::kFloat32);
-      for (int64_t f = 1; f + 1 < st.frames; ++f) {
-        const double mse = (pred[f + 1] - truth[f + 1]).pow(2).mean().item<double>();
-        pr.step_sq[static_cast<size_t>(f - 1)] += mse;
-        pr.sq += mse;
-        ++pr.steps;
-        const BodyMotionError e = body_motion_error(pred[f + 1], truth[f + 1], mesh.body_id);
-        pr.parts += e;
-        if (f == 1) pr.first_parts += e;
-      }
-      ++pr.draws_done;
+      score(pr,
+            torch::from_blob(const_cast<float*>(kx.data()), {st.frames, n, dim}, torch::kFloat32),
+            truth);
     }
   }
   return result;
@@ -359,6 +379,11 @@ Json predictability_experiment(const PredictabilityOptions& o) {
     throw InputError("--target " + format_number(o.target) + ": must be a positive ratio");
   if (!(std::isfinite(o.centre) && std::isfinite(o.rotation)))
     throw InputError("--centre / --rotation: must be finite");
+  for (const std::string& assignment : o.solver_set)
+    if (assignment.rfind("scene.", 0) != 0 || assignment.find('=') == std::string::npos)
+      throw InputError("--solver-set " + assignment +
+                       ": expected scene.KEY=VALUE (a key of the family's scene, e.g. "
+                       "scene.background.element_size=0.041)");
 
   // The base one-step error: given, or the run's one-step body error.
   double centre = o.centre, rotation = o.rotation;
@@ -404,8 +429,13 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   }
   if (!gen.contains("config") || !gen["config"].is_object())
     throw InputError(manifest.string() + ": key config: expected the family config object");
-  const generate::FamilyConfig family =
-      generate::parse_family(gen["config"], manifest.string() + " (config)");
+  // --solver-set: the family as stored, altered (the re-solve's reference, kicked or not).
+  Json family_json = gen["config"];
+  for (const std::string& assignment : o.solver_set)
+    apply_override(family_json, assignment, "--solver-set");
+  const generate::FamilyConfig family = generate::parse_family(
+      family_json, manifest.string() + " (config" +
+                       (o.solver_set.empty() ? std::string() : ", altered by --solver-set") + ")");
 
   const Dataset data = Dataset::open_split(o.data, o.split);
   if (!base_data.empty()) {
@@ -464,6 +494,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   if (rho > 0)
     for (double s : o.scales) points.push_back({s, false, rho});
   for (double s : o.scales) points.push_back({s, true, 0.0});
+  if (!o.solver_set.empty()) points.push_back({0.0, false, 0.0, true});
 
   const fs::path out = o.out;
   std::error_code ec;
@@ -586,7 +617,8 @@ Json predictability_experiment(const PredictabilityOptions& o) {
                                                : std::numeric_limits<double>::quiet_NaN();
     };
     const Point& pt = points[p];
-    const double c = centre * pt.scale, r = rotation * pt.scale;
+    const double c = pt.altered ? 0.0 : centre * pt.scale,
+                 r = pt.altered ? 0.0 : rotation * pt.scale;
     Json row = {{"scale", pt.scale},
                 {"mode", pt.mode()},
                 {"centre_per_frame_m", c},
@@ -607,7 +639,10 @@ Json predictability_experiment(const PredictabilityOptions& o) {
                 {"trajectories", per.size()},
                 {"failed_solves", failed}};
     point_rows.push_back(row);
-    if (!pt.once) {
+    if (pt.altered) {
+      curves.push_back(
+          {"altered solver against the stored frames", curve, "lines lw 2 lc rgb 'dark-red'"});
+    } else if (!pt.once) {
       sweeps[pt.mode()].first.push_back(pt.scale);
       sweeps[pt.mode()].second.push_back(ratio);
       if (pt.rho > 0 || pt.scale == 1.0)
@@ -616,10 +651,10 @@ Json predictability_experiment(const PredictabilityOptions& o) {
     } else if (pt.scale == 1.0) {
       curves.push_back({"once, 1x", curve, "lines lw 2 dt 3"});
     }
-    table << "| " << format_number(pt.scale) << "×, " << pt.mode() << " | " << sci(c) << " / "
-          << sci(r) << " | " << sci(rms(first.centre, first_count)) << " / "
-          << sci(rms(first.rotation, first_count)) << " | " << sci(at(10)) << " / " << sci(at(20))
-          << " / " << sci(at(curve.size())) << " | " << sci(rmse_all) << " | "
+    table << "| " << (pt.altered ? std::string() : format_number(pt.scale) + "×, ") << pt.mode()
+          << " | " << sci(c) << " / " << sci(r) << " | " << sci(rms(first.centre, first_count))
+          << " / " << sci(rms(first.rotation, first_count)) << " | " << sci(at(10)) << " / "
+          << sci(at(20)) << " / " << sci(at(curve.size())) << " | " << sci(rmse_all) << " | "
           << format_number(ratio, 3)
           << (interval ? " [" + format_number(interval->lo, 3) + "–" +
                              format_number(interval->hi, 3) + "]"
@@ -641,6 +676,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
                  {"wall_s", wall_s},
                  {"base", {{"centre_m", centre}, {"rotation_m", rotation}, {"from", base_source}}},
                  {"resolve_max_abs_diff_m", resolve_diff},
+                 {"solver_set", o.solver_set},
                  {"rmse_all_constant_velocity", number_or_null(cv_rmse)},
                  {"constant_velocity_per_step", cv_curve},
                  {"points", point_rows},
@@ -697,11 +733,19 @@ Json predictability_experiment(const PredictabilityOptions& o) {
     persistence_line << "The *persistent* rows draw AR(1) kicks with correlation "
                      << format_number(rho, 3) << " between frames (given).\n\n";
   }
+  std::string altered_list;
+  for (const std::string& a : o.solver_set)
+    altered_list += (altered_list.empty() ? "`" : ", `") + a + "`";
   std::ostringstream md;
   md << "## Predictability: the solver kicked by one-step errors\n\n"
      << "`" << data.location() << "`, " << count << " trajectories, each solved again by UMLS-MPM "
-     << "(largest difference from the stored frames: " << sci(resolve_diff) << " m) and then "
-     << o.draws << " time(s) per row with random rigid kicks of its free bodies: per frame a "
+     << (o.solver_set.empty()
+             ? "(largest difference from the stored frames: " + sci(resolve_diff) + " m)"
+             : "with the solver altered (" + altered_list +
+                   "; the row *altered solver, no "
+                   "kicks* scores that solve against the stored frames, like a rollout)")
+     << " and then " << o.draws
+     << " time(s) per row with random rigid kicks of its free bodies: per frame a "
      << "velocity change whose displacement over one frame is the row's centre error per "
      << "component (RMS) plus a spin moving the body's nodes by the row's rotation error. Base "
      << "error (1×): centre " << sci(centre) << " m, rotation " << sci(rotation) << " m ("

@@ -52,6 +52,12 @@ struct PredictabilityOptions {
   uint64_t seed = 1;
   int threads = 0;  // trajectories solved at once (0: hardware threads)
   bool quiet = false;
+  // "scene.KEY=VALUE" changes to the family's scene for every re-solve (e.g.
+  // scene.background.element_size=0.041: another background mesh). The altered solve is then the
+  // kicked rows' reference, and a row "altered solver, no kicks" scores it against the stored
+  // frames like a rollout: how much the data depend on that choice of the solver, a part of the
+  // motion a model that cannot see it cannot predict.
+  std::vector<std::string> solver_set;
 };
 
 // How long a model's one-step errors persist, from a teacher-forced rollout file (bsms rollout
