@@ -43,3 +43,12 @@ def gap_to_others(frame, body, b, ids):
     x = frame[body == b]
     return min((np.linalg.norm(x[:, None] - frame[body == o][None], axis=2).min()
                 for o in ids if o != b), default=np.inf)
+
+
+def predicted_and_true(path, name, g):
+    """Trajectory `name` (group g) of rollout file `path`: body ids [N], predicted and true world
+    positions [F, N, dim] as float64."""
+    if "target_world_pos" not in g:
+        fail(f"{path}: trajectory {name} has no target_world_pos (not a rollout file)")
+    return (g["body_id"][:], g["world_pos"][:].astype(np.float64),
+            g["target_world_pos"][:].astype(np.float64))

@@ -21,7 +21,8 @@ momentum groups use) and its unit box.
 import argparse
 
 # body_contacts checks for h5py and numpy first, with a one-line message.
-from body_contacts import add_range_options, check_ranges, fail, gap_to_others, np, trajectories
+from body_contacts import (add_range_options, check_ranges, fail, gap_to_others, np,
+                           predicted_and_true, trajectories)
 
 
 def main():
@@ -40,12 +41,7 @@ def main():
     normal_err = tangential_err = 0.0  # wall steps: along the nearest wall's normal, and across
     lo, hi = a.box
     for name in rollout:
-        g = rollout[name]
-        if "target_world_pos" not in g:
-            fail(f"{a.rollout}: trajectory {name} has no target_world_pos (not a rollout file)")
-        body = g["body_id"][:]
-        p = g["world_pos"][:].astype(np.float64)
-        q = g["target_world_pos"][:].astype(np.float64)
+        body, p, q = predicted_and_true(a.rollout, name, rollout[name])
         ids = np.unique(body)
         cp = np.stack([p[:, body == b].mean(1) for b in ids], 1)  # [F, B, dim]
         cq = np.stack([q[:, body == b].mean(1) for b in ids], 1)

@@ -1,5 +1,5 @@
 // bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
-// [--steps S] [--one-step] [--threads T]
+// [--steps S] [--one-step] [--ensemble RUN2,...] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -27,6 +27,10 @@ BSMS_COMMAND(
       sub.add_flag("--one-step", r->one_step,
                    "teacher forcing: every step from the true frames (one-step errors along "
                    "each trajectory; default output RUN/rollout_one_step; Lagrangian runs)");
+      sub.add_option("--ensemble", r->ensemble,
+                     "further Lagrangian runs: average their predicted accelerations with RUN's "
+                     "at every step (default output RUN/rollout_ensemble)")
+          ->delimiter(',');
       bsms::cli::add_threads_option(sub, r->threads);
       sub.footer(
           "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"

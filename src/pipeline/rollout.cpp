@@ -6,6 +6,9 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "core/error.hpp"
 #include "core/runtime.hpp"
@@ -13,6 +16,7 @@
 #include "models/graph_ops.hpp"
 #include "pipeline/body_motion_error.hpp"
 #include "pipeline/eulerian.hpp"
+#include "pipeline/graph_store.hpp"
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/rollout_eulerian.hpp"
 #include "pipeline/rollout_metrics.hpp"
@@ -99,6 +103,45 @@ std::optional<FieldRmse> rmse_over(const ErrorCurves& c, size_t steps) {
   return rmse;
 }
 
+// A further run of an ensemble rollout: its model, features and multilevel graphs.
+struct EnsembleMember {
+  std::string model_type;
+  LagrangianSpec spec;
+  std::shared_ptr<LearnedSimulator> simulator;
+  std::unique_ptr<GraphStore> store;
+  std::unique_ptr<LagrangianAdapter> adapter;
+};
+
+EnsembleMember open_member(const std::string& run, const LagrangianSpec& first, const Dataset& data,
+                           const std::string& data_dir, const std::string& seeding) {
+  const RunFolder folder = RunFolder::open(run);
+  const Json& features = folder.features_resolved;
+  if (features.is_object() && features.value("kind", std::string()) == "eulerian")
+    throw InputError(folder.config_path + ": --ensemble " + run +
+                     " is an Eulerian run; an ensemble averages Lagrangian runs");
+  EnsembleMember m;
+  m.model_type = folder.config.model.type;
+  m.spec = walls_for_scene(lagrangian_spec_from_json(features, folder.config_path), data.scene());
+  if (m.spec.dim != first.dim || m.spec.first_order != first.first_order)
+    throw InputError(folder.config_path + ": --ensemble " + run + " predicts " +
+                     (m.spec.first_order ? "velocities" : "accelerations") + " in " +
+                     std::to_string(m.spec.dim) + "-D; the first run " +
+                     (first.first_order ? "velocities" : "accelerations") + " in " +
+                     std::to_string(first.dim) + "-D");
+  m.simulator = std::make_shared<LearnedSimulator>(m.spec, folder.config.model, folder.levels);
+  load_checkpoint(run_checkpoint_path(run), *m.simulator, nullptr);
+  m.simulator->eval();
+  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
+                                         (fs::path(run) / "multilevel").string()};
+  std::error_code ec;
+  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
+  m.store = std::make_unique<GraphStore>(
+      seeding.empty() ? folder.config.model.seeding : parse_seeding(seeding), folder.levels,
+      cache_dirs);
+  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
+  return m;
+}
+
 }  // namespace
 
 RolloutMetrics rollout(const RolloutRequest& request) {
@@ -108,9 +151,12 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   const TrainConfig& config = folder.config;
   const int levels = folder.levels;
   const Json& features = folder.features_resolved;
-  if (features.is_object() && features.value("kind", std::string()) == "eulerian")
+  if (features.is_object() && features.value("kind", std::string()) == "eulerian") {
+    if (!request.ensemble.empty())
+      throw InputError(config_file + ": an Eulerian run; --ensemble averages Lagrangian runs");
     return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file),
                             levels);
+  }
   LagrangianSpec spec = lagrangian_spec_from_json(features, config_file);
   const int threads = configure_threads(set_num_threads(request.threads));
 
@@ -120,6 +166,12 @@ RolloutMetrics rollout(const RolloutRequest& request) {
 
   const std::string data_dir = request.data.empty() ? config.data : request.data;
   const Dataset data = Dataset::open_split(data_dir, request.split);
+  std::string model_name = config.model.type;
+  std::vector<EnsembleMember> members;
+  for (const std::string& other : request.ensemble) {
+    members.push_back(open_member(other, spec, data, data_dir, request.seeding));
+    model_name += "+" + members.back().model_type;
+  }
   if (data.dim() != spec.dim || data.mesh(0).dim != spec.mesh_dimension())
     throw InputError(data.location() + ": dimension " + std::to_string(data.dim()) + " (mesh " +
                      std::to_string(data.mesh(0).dim) + ") differs from the model's " +
@@ -188,7 +240,14 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       for (int64_t k = f - 2; k >= 0 && k > f - 1 - spec.history; --k)
         state.older.push_back(seen(k));
       Batch batch = adapter.make_batch({state});
-      const auto accel = simulator->predict(batch);
+      auto accel = simulator->predict(batch);
+      for (EnsembleMember& m : members) {  // the same state through each member's own inputs
+        FrameState own{&m.store->get(mesh), &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
+        for (int64_t k = f - 2; k >= 0 && k > f - 1 - m.spec.history; --k)
+          own.older.push_back(seen(k));
+        accel = accel + m.simulator->predict(m.adapter->make_batch({own}));
+      }
+      if (!members.empty()) accel = accel / static_cast<double>(members.size() + 1);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
       tally.infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(next).all().item<bool>()) {
@@ -250,7 +309,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   rollout_outputs::write_xdmf_files(out_h5, out_dir, request.split);
 
   RolloutMetrics metrics;
-  metrics.model = config.model.type;
+  metrics.model = model_name;
   metrics.split = request.split;
   metrics.data = data.location();
   metrics.num_trajectories = count;

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "pipeline/rollout_metrics.hpp"
 
@@ -23,6 +24,10 @@ struct RolloutRequest {
   // one-step errors along the trajectory, not a rollout's. Writes to RUN/rollout_one_step by
   // default and marks its metrics "one_step" (bsms report refuses them).
   bool one_step = false;
+  // Further Lagrangian runs whose predicted accelerations are averaged with RUN's at every step
+  // (an ensemble; each member sees the same state through its own features and graphs). Writes
+  // to RUN/rollout_ensemble (RUN/rollout_one_step_ensemble) by default.
+  std::vector<std::string> ensemble;
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").
