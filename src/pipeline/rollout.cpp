@@ -103,43 +103,52 @@ std::optional<FieldRmse> rmse_over(const ErrorCurves& c, size_t steps) {
   return rmse;
 }
 
-// A further run of an ensemble rollout: its model, features and multilevel graphs.
-struct EnsembleMember {
+// A Lagrangian run ready to roll out on a dataset: its model, features (walls of the data's
+// scene) and multilevel graphs. The run rolled out and each member of an ensemble.
+struct RolloutModel {
   std::string model_type;
   LagrangianSpec spec;
+  Seeding seeding = Seeding::kMinAve;
   std::shared_ptr<LearnedSimulator> simulator;
   std::unique_ptr<GraphStore> store;
   std::unique_ptr<LagrangianAdapter> adapter;
 };
 
-EnsembleMember open_member(const std::string& run, const LagrangianSpec& first, const Dataset& data,
-                           const std::string& data_dir, const std::string& seeding) {
+RolloutModel open_model(const RunFolder& folder, const Dataset& data, const std::string& data_dir,
+                        const std::string& seeding) {
+  RolloutModel m;
+  m.model_type = folder.config.model.type;
+  m.spec = walls_for_scene(lagrangian_spec_from_json(folder.features_resolved, folder.config_path),
+                           data.scene());
+  m.simulator = std::make_shared<LearnedSimulator>(m.spec, folder.config.model, folder.levels);
+  load_checkpoint(run_checkpoint_path(folder.dir), *m.simulator, nullptr);
+  m.simulator->eval();
+  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
+                                         (fs::path(folder.dir) / "multilevel").string()};
+  std::error_code ec;
+  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
+  m.seeding = seeding.empty() ? folder.config.model.seeding : parse_seeding(seeding);
+  m.store = std::make_unique<GraphStore>(m.seeding, folder.levels, cache_dirs);
+  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
+  return m;
+}
+
+// A further run of an ensemble: Lagrangian, predicting what the first run predicts.
+RolloutModel open_member(const std::string& run, const LagrangianSpec& first, const Dataset& data,
+                         const std::string& data_dir, const std::string& seeding) {
   const RunFolder folder = RunFolder::open(run);
   const Json& features = folder.features_resolved;
   if (features.is_object() && features.value("kind", std::string()) == "eulerian")
     throw InputError(folder.config_path + ": --ensemble " + run +
                      " is an Eulerian run; an ensemble averages Lagrangian runs");
-  EnsembleMember m;
-  m.model_type = folder.config.model.type;
-  m.spec = walls_for_scene(lagrangian_spec_from_json(features, folder.config_path), data.scene());
-  if (m.spec.dim != first.dim || m.spec.first_order != first.first_order)
+  const LagrangianSpec spec = lagrangian_spec_from_json(features, folder.config_path);
+  if (spec.dim != first.dim || spec.first_order != first.first_order)
     throw InputError(folder.config_path + ": --ensemble " + run + " predicts " +
-                     (m.spec.first_order ? "velocities" : "accelerations") + " in " +
-                     std::to_string(m.spec.dim) + "-D; the first run " +
+                     (spec.first_order ? "velocities" : "accelerations") + " in " +
+                     std::to_string(spec.dim) + "-D; the first run " +
                      (first.first_order ? "velocities" : "accelerations") + " in " +
                      std::to_string(first.dim) + "-D");
-  m.simulator = std::make_shared<LearnedSimulator>(m.spec, folder.config.model, folder.levels);
-  load_checkpoint(run_checkpoint_path(run), *m.simulator, nullptr);
-  m.simulator->eval();
-  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
-                                         (fs::path(run) / "multilevel").string()};
-  std::error_code ec;
-  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  m.store = std::make_unique<GraphStore>(
-      seeding.empty() ? folder.config.model.seeding : parse_seeding(seeding), folder.levels,
-      cache_dirs);
-  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
-  return m;
+  return open_model(folder, data, data_dir, seeding);
 }
 
 }  // namespace
@@ -160,37 +169,31 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   LagrangianSpec spec = lagrangian_spec_from_json(features, config_file);
   const int threads = configure_threads(set_num_threads(request.threads));
 
-  auto simulator = std::make_shared<LearnedSimulator>(spec, config.model, levels);
-  load_checkpoint(run_checkpoint_path(run), *simulator, nullptr);
-  simulator->eval();
-
   const std::string data_dir = request.data.empty() ? config.data : request.data;
   const Dataset data = Dataset::open_split(data_dir, request.split);
-  std::string model_name = config.model.type;
-  std::vector<EnsembleMember> members;
-  for (const std::string& other : request.ensemble) {
-    members.push_back(open_member(other, spec, data, data_dir, request.seeding));
-    model_name += "+" + members.back().model_type;
-  }
   if (data.dim() != spec.dim || data.mesh(0).dim != spec.mesh_dimension())
     throw InputError(data.location() + ": dimension " + std::to_string(data.dim()) + " (mesh " +
                      std::to_string(data.mesh(0).dim) + ") differs from the model's " +
                      std::to_string(spec.dim) + " (mesh " + std::to_string(spec.mesh_dimension()) +
                      ")");
-  spec = walls_for_scene(spec, data.scene());
+  RolloutModel first = open_model(folder, data, data_dir, request.seeding);
+  spec = first.spec;
+  std::string model_name = first.model_type;
+  std::vector<RolloutModel> members;
+  for (const std::string& other : request.ensemble) {
+    members.push_back(open_member(other, spec, data, data_dir, request.seeding));
+    model_name += "+" + members.back().model_type;
+  }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
   const int64_t count = request.max_trajectories > 0
                             ? std::min(request.max_trajectories, data.num_trajectories())
                             : data.num_trajectories();
   std::error_code ec;
-  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
-                                         (fs::path(run) / "multilevel").string()};
-  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  const Seeding seeding =
-      request.seeding.empty() ? config.model.seeding : parse_seeding(request.seeding);
-  GraphStore store(seeding, levels, cache_dirs);
-  LagrangianAdapter adapter(spec);
+  const Seeding seeding = first.seeding;
+  GraphStore& store = *first.store;
+  const LagrangianAdapter& adapter = *first.adapter;
+  LearnedSimulator& simulator = *first.simulator;
 
   const fs::path out_dir = rollout_outputs::out_dir(request);
   fs::create_directories(out_dir, ec);
@@ -240,8 +243,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       for (int64_t k = f - 2; k >= 0 && k > f - 1 - spec.history; --k)
         state.older.push_back(seen(k));
       Batch batch = adapter.make_batch({state});
-      auto accel = simulator->predict(batch);
-      for (EnsembleMember& m : members) {  // the same state through each member's own inputs
+      auto accel = simulator.predict(batch);
+      for (RolloutModel& m : members) {  // the same state through each member's own inputs
         FrameState own{&m.store->get(mesh), &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
         for (int64_t k = f - 2; k >= 0 && k > f - 1 - m.spec.history; --k)
           own.older.push_back(seen(k));
