@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The long recipe: BSMS-GNN and MeshGraphNets trained for the same wall-clock budget each
 # (default 60 min) on a larger disks2d dataset, rolled out on its test split, with a report whose
-# loss plot is against wall time. Resumable: rerun the same command after an interruption and each
+# loss plot is against wall time, and a second report (OUT_DIR/symmetric) of the same models with
+# their predictions averaged over the box's symmetries. Resumable: rerun the same command after an interruption and each
 # model continues from its latest checkpoint (the budget counts the time already trained).
 # Usage: scripts/train_long.sh BUILD_DIR OUT_DIR   (environment: LONG_TRAJECTORIES (400),
 # LONG_TRAIN_SECONDS (3600), LONG_THREADS (0 = all), LONG_SEED (0), LONG_BSMS_LATENT (64),
@@ -45,10 +46,15 @@ for model in bsms mgn; do
     "${resume[@]}" --set "data=$data" --set "time_budget_s=$budget" --set steps=10000000 \
     --set valid_every=1000 "${extra[@]}"
   "$bsms" rollout "$run" --split test --threads "$threads"
+  # The same model with each prediction averaged over the box's 8 symmetries (README, "Frame
+  # averaging"): RUN/rollout_symmetric.
+  "$bsms" rollout "$run" --split test --threads "$threads" --symmetrize
 done
 budgets="${train_seconds} s of training each"
 [[ $bsms_seconds == "$train_seconds" ]] ||
   budgets="BSMS ${bsms_seconds} s, MeshGraphNets ${train_seconds} s of training"
 "$bsms" report "$out_dir/bsms" "$out_dir/mgn" --out "$out_dir" \
   --title "bsms long recipe: disks2d ($trajectories trajectories, $budgets)"
-echo "train-long: $out_dir/report.md"
+"$bsms" report "$out_dir/bsms" "$out_dir/mgn" --out "$out_dir/symmetric" --rollout rollout_symmetric \
+  --title "bsms long recipe: disks2d ($trajectories trajectories, $budgets), averaged over the box's symmetries"
+echo "train-long: $out_dir/report.md, $out_dir/symmetric/report.md"

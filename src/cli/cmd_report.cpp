@@ -1,4 +1,4 @@
-// bsms report RUN... [--out DIR]
+// bsms report RUN... --out DIR [--title T] [--rollout NAME]
 #include <iostream>
 
 #include "cli/command.hpp"
@@ -12,6 +12,9 @@ BSMS_COMMAND("report", "table and plots (speed vs error, RMSE over steps, loss) 
                sub.add_option("runs", r->runs, "run folders with rollout/metrics.json")->required();
                sub.add_option("--out", r->out, "report folder (report.md, plots/)")->required();
                sub.add_option("--title", r->title, "report title");
+               sub.add_option("--rollout", r->rollout,
+                              "rollout folder read in each run (default rollout; e.g. "
+                              "rollout_symmetric, rollout_ensemble)");
                sub.callback([r] { std::cout << bsms::write_report(*r) << '\n'; });
              });
 

@@ -1,5 +1,5 @@
 // bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
-// [--steps S] [--one-step] [--ensemble RUN2,...] [--threads T]
+// [--steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -31,6 +31,10 @@ BSMS_COMMAND(
                      "further Lagrangian runs: average their predicted accelerations with RUN's "
                      "at every step (default output RUN/rollout_ensemble)")
           ->delimiter(',');
+      sub.add_flag("--symmetrize", r->symmetrize,
+                   "average each prediction over the symmetries of the data's box scene "
+                   "(reflections, equal-side axis swaps; default output "
+                   "RUN/rollout_symmetric)");
       bsms::cli::add_threads_option(sub, r->threads);
       sub.footer(
           "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"

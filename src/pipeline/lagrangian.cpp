@@ -18,18 +18,6 @@ Json wall_json(double v) {
   return std::isnan(v) ? Json(nullptr) : Json(v);
 }
 
-// The background object of a dataset's scene JSON (a family file with a "scene" object, or a
-// scene); an empty object when there is none or the text is not JSON.
-Json scene_background(const std::string& scene_json, Json* scene_out = nullptr) {
-  const Json parsed = Json::parse(scene_json, nullptr, false);
-  if (!parsed.is_object()) return Json::object();
-  const Json& scene =
-      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
-  if (scene_out) *scene_out = scene;
-  const Json background = scene.value("background", Json::object());
-  return background.is_object() ? background : Json::object();
-}
-
 // Every boundary of a scene is "slip" or "roller": its walls push only along their normals.
 bool slip_walls_only(const Json& scene) {
   for (const auto& b : scene.value("boundaries", Json::array())) {
@@ -41,6 +29,16 @@ bool slip_walls_only(const Json& scene) {
 }
 
 }  // namespace
+
+Json scene_background(const std::string& scene_json, Json* scene_out) {
+  const Json parsed = Json::parse(scene_json, nullptr, false);
+  if (!parsed.is_object()) return Json::object();
+  const Json& scene =
+      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
+  if (scene_out) *scene_out = scene;
+  const Json background = scene.value("background", Json::object());
+  return background.is_object() ? background : Json::object();
+}
 
 Json to_json(const LagrangianSpec& s) {
   Json j{{"dim", s.dim},

@@ -73,6 +73,10 @@ struct LagrangianSpec {
 Json to_json(const LagrangianSpec& spec);
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file);
 
+// The background object of a dataset's scene JSON (a family file with a "scene" object, or a
+// scene); an empty object when there is none or the text is not JSON. `scene_out`: the scene.
+Json scene_background(const std::string& scene_json, Json* scene_out = nullptr);
+
 // Contact radius "auto": the range at which two bodies of the scene's solver already interact,
 // 1.5 background cells (the kernel support; `background.element_size` of the scene JSON), and at
 // least 1.5 mean mesh edges (public data without a background).

@@ -54,6 +54,14 @@ void write_edges(std::ofstream& f, const TrajectoryMesh& mesh, const std::vector
       }
 }
 
+// The model as the tables name it: with --symmetrize, how many symmetries each prediction
+// averages.
+std::string model_name(const RolloutMetrics& m) {
+  return m.model + (m.symmetries > 1
+                        ? ", averaged over " + std::to_string(m.symmetries) + " symmetries"
+                        : std::string());
+}
+
 // Steps averaged into each point of the plotted training-loss curve: 0.5 % of the run.
 size_t training_loss_window(size_t steps) {
   return std::max<size_t>(1, steps / 200);
@@ -63,18 +71,24 @@ size_t training_loss_window(size_t steps) {
 
 std::string write_report(const ReportRequest& request) {
   if (request.runs.empty()) throw InputError("report: give at least one run folder");
+  const std::string& rollout = request.rollout;
+  if (rollout.empty() || rollout.find('/') != std::string::npos || rollout == "." ||
+      rollout == "..")
+    throw InputError("report: --rollout '" + rollout +
+                     "' is not a folder name (e.g. rollout, rollout_symmetric)");
   std::vector<RunData> runs;
   for (const auto& dir : request.runs) {
-    const fs::path metrics = fs::path(dir) / "rollout" / "metrics.json";
+    const fs::path metrics = fs::path(dir) / rollout / "metrics.json";
     if (!fs::exists(metrics))
-      throw InputError(dir + ": no rollout/metrics.json (run bsms rollout " + dir + " first)");
+      throw InputError(dir + ": no " + rollout + "/metrics.json (run bsms rollout " + dir +
+                       " first)");
     RunData r;
     r.dir = dir;
     r.metrics = read_rollout_metrics(metrics.string());
     if (r.metrics.one_step)
       throw InputError(metrics.string() + ": holds one-step errors (bsms rollout --one-step), " +
                        "not a rollout: run bsms rollout " + dir + " for the report");
-    r.label = fs::path(dir).filename().string() + " (" + r.metrics.model + ")";
+    r.label = fs::path(dir).filename().string() + " (" + model_name(r.metrics) + ")";
     r.log = read_train_log((fs::path(dir) / "train_log.csv").string());
     r.loss_window = training_loss_window(r.log.size());
     runs.push_back(std::move(r));
@@ -180,7 +194,7 @@ std::string write_report(const ReportRequest& request) {
   // Ground truth next to prediction: first trajectory of each run, three frames.
   for (size_t r = 0; r < runs.size(); ++r) {
     const std::string& split = runs[r].metrics.split;
-    const fs::path h5 = fs::path(runs[r].dir) / "rollout" / (split + ".h5");
+    const fs::path h5 = fs::path(runs[r].dir) / rollout / (split + ".h5");
     if (!fs::exists(h5)) continue;
     const Dataset d(h5.string());
     if (d.dim() < 2 || !d.has_field("target_world_pos")) continue;
@@ -223,7 +237,7 @@ std::string write_report(const ReportRequest& request) {
      << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : runs) {
     const RolloutMetrics& m = r.metrics;
-    md << "| " << fs::path(r.dir).filename().string() << " | " << m.model << " | " << m.levels
+    md << "| " << fs::path(r.dir).filename().string() << " | " << model_name(m) << " | " << m.levels
        << " | " << (m.train_steps ? std::to_string(*m.train_steps) : "–") << " | "
        << format_number(or_nan(m.train_ms_per_step), 1, Notation::kFixed) << " | "
        << format_number(m.infer_ms_per_step, 2, Notation::kFixed) << " | "

@@ -7,9 +7,12 @@
 namespace bsms {
 
 struct ReportRequest {
-  std::vector<std::string> runs;  // run folders with rollout/metrics.json
+  std::vector<std::string> runs;  // run folders with <rollout>/metrics.json
   std::string out;                // folder for report.md and plots/
   std::string title = "bsms report";
+  // The rollout folder read in each run: "rollout", or e.g. "rollout_symmetric" (bsms rollout
+  // --symmetrize) or "rollout_ensemble"; a folder name, not a path.
+  std::string rollout = "rollout";
 };
 
 // Writes OUT/report.md and OUT/plots/*.png (gnuplot): per-model table, rollout RMSE over steps,

@@ -22,6 +22,7 @@
 #include "pipeline/rollout_metrics.hpp"
 #include "pipeline/rollout_outputs.hpp"
 #include "pipeline/run_files.hpp"
+#include "pipeline/scene_symmetry.hpp"
 #include "pipeline/simulator.hpp"
 #include "pipeline/trainer.hpp"
 
@@ -163,6 +164,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   if (features.is_object() && features.value("kind", std::string()) == "eulerian") {
     if (!request.ensemble.empty())
       throw InputError(config_file + ": an Eulerian run; --ensemble averages Lagrangian runs");
+    if (request.symmetrize)
+      throw InputError(config_file + ": an Eulerian run; --symmetrize maps Lagrangian states");
     return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file),
                             levels);
   }
@@ -186,6 +189,19 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
+  // Frame averaging: each model's prediction averaged over the scene's symmetries.
+  std::vector<BoxSymmetry> symmetries;
+  if (request.symmetrize) {
+    std::string why;
+    symmetries = scene_symmetries(data.scene(), spec.dim, &why);
+    if (symmetries.size() < 2)
+      throw InputError(data.location() + ": --symmetrize: " + why +
+                       ", so there is no symmetry to average over");
+    if (spec.mesh_dimension() != spec.dim)
+      throw InputError(config_file + ": --symmetrize needs mesh positions in " +
+                       std::to_string(spec.dim) + "-D like the world positions (the run has " +
+                       std::to_string(spec.mesh_dimension()) + "-D ones)");
+  }
   const int64_t count = request.max_trajectories > 0
                             ? std::min(request.max_trajectories, data.num_trajectories())
                             : data.num_trajectories();
@@ -193,7 +209,6 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   const Seeding seeding = first.seeding;
   GraphStore& store = *first.store;
   const LagrangianAdapter& adapter = *first.adapter;
-  LearnedSimulator& simulator = *first.simulator;
 
   const fs::path out_dir = rollout_outputs::out_dir(request);
   fs::create_directories(out_dir, ec);
@@ -233,6 +248,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                                  .to(torch::kInt64)
                            : torch::zeros({0, spec.dim + 1}, torch::kInt64);
     const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
+    std::vector<TrajectoryMesh> mapped_meshes;  // the mesh under each symmetry after the identity
+    for (size_t k = 1; k < symmetries.size(); ++k)
+      mapped_meshes.push_back(symmetries[k].mesh(mesh));
     int64_t steps = 0;
     double model_sq = 0, inertial_traj_sq = 0;  // this trajectory's sums of per-step MSE
     for (int64_t f = 1; f + 1 < frames; ++f) {
@@ -243,12 +261,36 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       for (int64_t k = f - 2; k >= 0 && k > f - 1 - spec.history; --k)
         state.older.push_back(seen(k));
       Batch batch = adapter.make_batch({state});
-      auto accel = simulator.predict(batch);
+      // One model's acceleration for `own` (the state through that model's graphs; `plain`: its
+      // batch, when built) or, with --symmetrize, the mean over `own` mapped by each symmetry
+      // (one block-diagonal batch), each prediction mapped back.
+      auto predict = [&](RolloutModel& m, const FrameState& own, const Batch* plain) {
+        if (symmetries.empty())
+          return m.simulator->predict(plain ? *plain : m.adapter->make_batch({own}));
+        std::vector<FrameState> views = {own};
+        for (size_t k = 1; k < symmetries.size(); ++k) {
+          const BoxSymmetry& g = symmetries[k];
+          FrameState view = own;
+          view.mesh = &mapped_meshes[k - 1];
+          view.prev = g.points(own.prev);
+          view.cur = g.points(own.cur);
+          view.next = g.points(own.next);
+          for (auto& older : view.older) older = g.points(older);
+          views.push_back(view);
+        }
+        const int64_t count = static_cast<int64_t>(symmetries.size());
+        const auto out =
+            m.simulator->predict(m.adapter->make_batch(views)).view({count, n, spec.dim});
+        torch::Tensor sum = out[0];
+        for (int64_t k = 1; k < count; ++k) sum = sum + symmetries[k].vectors_back(out[k]);
+        return sum / static_cast<double>(count);
+      };
+      auto accel = predict(first, state, &batch);
       for (RolloutModel& m : members) {  // the same state through each member's own inputs
         FrameState own{&m.store->get(mesh), &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
         for (int64_t k = f - 2; k >= 0 && k > f - 1 - m.spec.history; --k)
           own.older.push_back(seen(k));
-        accel = accel + m.simulator->predict(m.adapter->make_batch({own}));
+        accel = accel + predict(m, own, nullptr);
       }
       if (!members.empty()) accel = accel / static_cast<double>(members.size() + 1);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
@@ -317,6 +359,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.data = data.location();
   metrics.num_trajectories = count;
   metrics.one_step = request.one_step;
+  metrics.symmetries = symmetries.empty() ? 1 : static_cast<int>(symmetries.size());
   metrics.rmse_1 = rmse_over(curves, 1);
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());

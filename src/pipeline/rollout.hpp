@@ -28,6 +28,11 @@ struct RolloutRequest {
   // (an ensemble; each member sees the same state through its own features and graphs). Writes
   // to RUN/rollout_ensemble (RUN/rollout_one_step_ensemble) by default.
   std::vector<std::string> ensemble;
+  // Frame averaging: every model's prediction averaged over the symmetries of the data's box
+  // scene (scene_symmetries: reflections and equal-side axis swaps that keep the walls' types
+  // and the gravity), each state mapped, predicted and the acceleration mapped back, so the
+  // averaged model is exactly equivariant to them. Default output RUN/rollout[...]_symmetric.
+  bool symmetrize = false;
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").

@@ -201,6 +201,7 @@ Json to_json(const RolloutMetrics& m) {
   j["data"] = m.data;
   j["num_trajectories"] = m.num_trajectories;
   if (m.one_step) j["one_step"] = true;
+  if (m.symmetries > 1) j["symmetries"] = m.symmetries;
   j["rmse_1"] = to_json(m.rmse_1);
   j["rmse_50"] = to_json(m.rmse_50);
   j["rmse_all"] = to_json(m.rmse_all);
@@ -244,7 +245,17 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   require(json.is_object(), {file, ""}, "a JSON object");
   JsonObjectReader r(json, {file, ""});
   m.model = r.get<std::string>("model");
-  require(m.model == "bsms" || m.model == "mgn", r.context("model"), "\"bsms\" or \"mgn\"");
+  {  // one model, or an ensemble's members joined by "+"
+    bool known = !m.model.empty();
+    for (size_t at = 0; known && at <= m.model.size();) {
+      const size_t end = std::min(m.model.find('+', at), m.model.size());
+      const std::string member = m.model.substr(at, end - at);
+      known = member == "bsms" || member == "mgn";
+      at = end + 1;
+    }
+    require(known, r.context("model"),
+            "\"bsms\" or \"mgn\", or an ensemble's members joined by \"+\" (e.g. \"bsms+mgn\")");
+  }
   if (r.has("kind")) {
     require(r.get<std::string>("kind") == "eulerian", r.context("kind"),
             "\"eulerian\" (Lagrangian metrics have no kind)");
@@ -254,6 +265,8 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.data = r.get<std::string>("data");
   m.num_trajectories = r.get<int64_t>("num_trajectories");
   m.one_step = r.opt<bool>("one_step", false);
+  m.symmetries = r.opt<int>("symmetries", 1);
+  require(m.symmetries >= 1, r.context("symmetries"), ">= 1");
   m.rmse_1 = field_rmse_from_json(r, "rmse_1");
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");

@@ -60,7 +60,7 @@ struct DivergedTrajectory {
 };
 
 struct RolloutMetrics {
-  std::string model;      // "bsms" | "mgn"
+  std::string model;      // "bsms" | "mgn"; an ensemble joins its members' with "+"
   bool eulerian = false;  // "kind": "eulerian"; Lagrangian files have no "kind"
   std::string split;
   std::string data;     // the dataset rolled out
@@ -69,6 +69,9 @@ struct RolloutMetrics {
   // Teacher forcing (bsms rollout --one-step): every step from the true frames, so the RMSE
   // figures are one-step errors and the references one step from the truth. "one_step": true.
   bool one_step = false;
+  // Symmetries each prediction was averaged over (bsms rollout --symmetrize; "symmetries",
+  // written when > 1); 1: the plain model.
+  int symmetries = 1;
   int levels = 1;
   int threads = 0;
   // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the

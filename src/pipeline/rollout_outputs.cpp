@@ -16,7 +16,8 @@ namespace fs = std::filesystem;
 fs::path out_dir(const RolloutRequest& request) {
   if (!request.out.empty()) return fs::path(request.out);
   return fs::path(request.run) / ((request.one_step ? "rollout_one_step" : "rollout") +
-                                  std::string(request.ensemble.empty() ? "" : "_ensemble"));
+                                  std::string(request.ensemble.empty() ? "" : "_ensemble") +
+                                  std::string(request.symmetrize ? "_symmetric" : ""));
 }
 
 void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,

@@ -19,6 +19,7 @@
 #include "pipeline/report.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/run_files.hpp"
+#include "pipeline/scene_symmetry.hpp"
 #include "pipeline/simulator.hpp"
 #include "pipeline/train_stats.hpp"
 #include "pipeline/trainer.hpp"
@@ -273,6 +274,102 @@ TEST_F(PipelineTest, EnsembleRolloutAveragesTheMembersAccelerations) {
   EXPECT_GT(apart, 1e-5);  // the two runs do predict differently
   // A member that is no run is an InputError naming it.
   q.ensemble = {(dir_ / "no_such_run").string()};
+  EXPECT_THROW(rollout(q), InputError);
+}
+
+TEST_F(PipelineTest, SymmetrizedRolloutIsEquivariantToTheBoxsSymmetries) {
+  // The plate in a square box with four slip walls and no gravity (the scene the group is read
+  // from; wall inputs and momentum come from it too).
+  const char* box =
+      R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}]}})";
+  const fs::path data = dir_ / "box_data";
+  fs::create_directories(data);
+  write_split(data, "train", 4, 12, 6, testing::dragged_plate, box);
+  write_split(data, "valid", 1, 12, 6, testing::dragged_plate, box);
+  write_split(data, "test", 1, 12, 6, testing::dragged_plate, box);
+  // The test trajectory turned by a quarter (x' = c - (y - c), y' = x): a symmetry of the box.
+  const auto group = scene_symmetries(box, 2);
+  ASSERT_EQ(group.size(), 8u);
+  BoxSymmetry turn;
+  for (const auto& g : group)
+    if (g.source == std::vector<int>{1, 0} && g.sign == std::vector<int>{-1, 1}) turn = g;
+  ASSERT_EQ(turn.dim(), 2);
+  const fs::path turned = dir_ / "box_turned";
+  fs::create_directories(turned);
+  {
+    const Dataset d((data / "test.h5").string());
+    DatasetWriter w((turned / "test.h5").string(), d.scene(), 2, d.frame_dt());
+    Trajectory t;
+    t.mesh = turn.mesh(d.mesh(0));
+    t.seed = d.seed(0);
+    t.num_frames = d.num_frames(0);
+    auto x = d.read(0, "world_pos", 0, t.num_frames);
+    const auto mapped =
+        turn.points(torch::from_blob(x.data(), {static_cast<int64_t>(x.size()) / 2, 2}))
+            .contiguous();
+    t.fields["world_pos"].assign(mapped.data_ptr<float>(),
+                                 mapped.data_ptr<float>() + mapped.numel());
+    w.add(t);
+    w.commit();
+  }
+  TrainRequest r;
+  r.config_path = write_config(dir_, data, "bsms", 30);
+  r.out = (dir_ / "box_bsms").string();
+  r.threads = 1;
+  r.quiet = true;
+  fs::remove_all(r.out);
+  train(r);
+  // Frame k of a rollout of the original and of the turned data, as [N, 2].
+  auto frame = [](const fs::path& out, int64_t k) {
+    const Dataset d((out / "test.h5").string());
+    auto x = d.read(0, "world_pos", k, 1);
+    return torch::from_blob(x.data(), {static_cast<int64_t>(x.size()) / 2, 2}).clone();
+  };
+  auto largest_gap = [&](const fs::path& a, const fs::path& b) {
+    double gap = 0.0;
+    for (int64_t k = 2; k < 8; ++k)
+      gap = std::max(gap, (turn.points(frame(a, k)) - frame(b, k)).abs().max().item<double>());
+    return gap;
+  };
+  RolloutRequest q;
+  q.run = r.out;
+  q.max_steps = 6;
+  q.threads = 1;
+  q.quiet = true;
+  for (bool symmetrize : {false, true}) {
+    q.symmetrize = symmetrize;
+    q.data = data.string();
+    q.out = (dir_ / (symmetrize ? "box_sym" : "box_plain")).string();
+    const RolloutMetrics m = rollout(q);
+    EXPECT_EQ(m.symmetries, symmetrize ? 8 : 1);
+    q.data = turned.string();
+    q.out = (dir_ / (symmetrize ? "box_sym_turned" : "box_plain_turned")).string();
+    rollout(q);
+  }
+  // The plain model is not equivariant (its inputs have axes); the average over the group is, to
+  // float rounding, over six predicted frames.
+  const double plain = largest_gap(dir_ / "box_plain", dir_ / "box_plain_turned");
+  const double sym = largest_gap(dir_ / "box_sym", dir_ / "box_sym_turned");
+  EXPECT_GT(plain, 1e-4);
+  EXPECT_LT(sym, 1e-5);
+  EXPECT_LT(sym, 0.01 * plain);
+  // The default output folder; a scene without a box has nothing to average over.
+  q.out.clear();
+  q.data = data.string();
+  rollout(q);
+  EXPECT_TRUE(fs::exists(fs::path(r.out) / "rollout_symmetric" / "metrics.json"));
+  // The report reads that folder when asked and says what the figures are; a path is refused.
+  ReportRequest report;
+  report.runs = {r.out};
+  report.out = (dir_ / "box_report").string();
+  report.rollout = "rollout_symmetric";
+  std::ifstream md(write_report(report));
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| box_bsms | bsms, averaged over 8 symmetries |"), std::string::npos)
+      << text;
+  report.rollout = "../box_sym";
+  EXPECT_THROW(write_report(report), InputError);
+  q.data = (dir_ / "data").string();
   EXPECT_THROW(rollout(q), InputError);
 }
 

@@ -114,12 +114,13 @@ inline Trajectory spring_plate(int64_t seed, int frames, int m = 6) {
 }
 
 // One split file of `count` trajectories made by `make(seed, frames, m)` (dragged_plate or
-// spring_plate); validation and test seeds differ from the training ones.
+// spring_plate); validation and test seeds differ from the training ones. `scene`: the scene
+// JSON stored with them (default: a name without a box).
 using PlateMaker = Trajectory (*)(int64_t, int, int);
 inline void write_split(const fs::path& dir, const std::string& split, int count, int frames,
-                        int m = 6, PlateMaker make = dragged_plate) {
-  const char* scene =
-      make == dragged_plate ? R"({"name": "falling_plate"})" : R"({"name": "spring_plate"})";
+                        int m = 6, PlateMaker make = dragged_plate, const char* scene = nullptr) {
+  if (!scene)
+    scene = make == dragged_plate ? R"({"name": "falling_plate"})" : R"({"name": "spring_plate"})";
   DatasetWriter w((dir / (split + ".h5")).string(), scene, 2, 0.01);
   for (int i = 0; i < count; ++i) {
     Trajectory t = make(i + (split == "train" ? 0 : 100), frames, m);

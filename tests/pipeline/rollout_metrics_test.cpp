@@ -177,9 +177,21 @@ TEST(RolloutMetricsFile, ReaderIsStrictAndNamesFileAndKey) {
   reversed["rmse_all_ratio_interval"] = Json::array({0.2, 0.1});
   EXPECT_NE(metrics_error(reversed).find("rmse_all_ratio_interval"), std::string::npos)
       << metrics_error(reversed);
-  Json model = good;
-  model["model"] = "gcn";
-  EXPECT_NE(metrics_error(model).find("'model'"), std::string::npos);
+  for (const char* bad : {"gcn", "bsms+gcn", "bsms+", "+mgn", ""}) {
+    Json model = good;
+    model["model"] = bad;
+    EXPECT_NE(metrics_error(model).find("'model'"), std::string::npos) << bad;
+  }
+  // An ensemble's metrics (members joined by "+") and a symmetrized rollout's read back.
+  Json ensemble = good;
+  ensemble["model"] = "bsms+mgn+bsms";
+  ensemble["symmetries"] = 8;
+  EXPECT_EQ(metrics_error(ensemble), "no error");
+  EXPECT_EQ(rollout_metrics_from_json(ensemble, "m.json").symmetries, 8);
+  EXPECT_FALSE(good.contains("symmetries"));  // written only when > 1
+  Json no_symmetry = good;
+  no_symmetry["symmetries"] = 0;
+  EXPECT_NE(metrics_error(no_symmetry).find("'symmetries'"), std::string::npos);
 }
 
 // The bootstrap against its exact distribution: with 3 trajectories there are 27 equally likely
