@@ -76,7 +76,9 @@ std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim
   const Json background = scene_background(scene_json, &scene);
   if (background.value("type", std::string()) != "box")
     return none("the scene has no \"box\" background");
-  if (background.value("rotation_deg", 0.0) != 0.0) return none("the scene's box is rotated");
+  const Json rotation = background.value("rotation_deg", Json(0.0));
+  if (!rotation.is_number() || rotation.get<double>() != 0.0)
+    return none("the scene's box is rotated");
   const Json lo = background.value("min", Json()), hi = background.value("max", Json());
   if (!lo.is_array() || !hi.is_array() || static_cast<int>(lo.size()) != dim ||
       static_cast<int>(hi.size()) != dim)
@@ -100,7 +102,9 @@ std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim
     if (!group.is_string() || side_of.count(group.get<std::string>()) == 0)
       return none("the scene has a boundary that is not a side of its box");
     const auto [a, s] = side_of[group.get<std::string>()];
-    const std::string t = b.value("type", std::string("fixed"));
+    const Json type_json = b.value("type", Json("fixed"));
+    if (!type_json.is_string()) return none("the scene has a boundary whose type is no name");
+    const std::string t = type_json.get<std::string>();
     if (!type[a][s].empty() && type[a][s] != t)
       return none("the scene has two boundary types on one side");
     type[a][s] = t;

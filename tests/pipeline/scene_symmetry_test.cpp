@@ -63,12 +63,17 @@ TEST(SceneSymmetry, CountsTheGroupEachBoxLeaves) {
                              3)
                 .size(),
             48u);
-  // No box, or a boundary that is no side of it: the identity alone, and why.
+  // No box, a boundary that is no side of it, a boundary type or a rotation that is no value: the
+  // identity alone, and why.
   for (
       const std::string& scene :
       {std::string(R"({"name": "falling_plate"})"),
        std::string(
-           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}, "boundaries": [{"point": [0, 0], "normal": [1, 1], "type": "slip"}]})")}) {
+           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}, "boundaries": [{"point": [0, 0], "normal": [1, 1], "type": "slip"}]})"),
+       std::string(
+           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}, "boundaries": [{"group": "left", "type": 3}]})"),
+       std::string(
+           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1], "rotation_deg": "a"}})")}) {
     std::string why;
     const auto only = scene_symmetries(scene, 2, &why);
     ASSERT_EQ(only.size(), 1u) << scene;
