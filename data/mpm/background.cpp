@@ -388,7 +388,6 @@ BackgroundMesh<Dim> make_lattice(const Vec<Dim>& lo, const Vec<Dim>& hi, double 
     total *= grid.counts[a];
   }
   bg.points.resize(total);
-  const char* names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
   const double tol = 1e-9 * dx;
   for (int64_t id = 0; id < total; ++id) {
     int64_t rest = id;
@@ -402,7 +401,7 @@ BackgroundMesh<Dim> make_lattice(const Vec<Dim>& lo, const Vec<Dim>& hi, double 
       for (int s = 0; s < 2; ++s) {
         const bool beyond = s == 0 ? x[a] <= lo[a] + tol : x[a] >= hi[a] - tol;
         if (!beyond) continue;
-        auto& group = bg.groups[names[a][s]];
+        auto& group = bg.groups[box_side_name(a, s != 0)];
         group.nodes.push_back(static_cast<int32_t>(id));
         Vec<Dim> n = Vec<Dim>::Zero();
         n[a] = s == 0 ? -1.0 : 1.0;

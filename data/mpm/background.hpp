@@ -99,6 +99,13 @@ template <int Dim>
 BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std::string& context,
                                     double kernel_width = 0.0);
 
+// The physical group of a box background's side: axis 0 "left"/"right", 1 "bottom"/"top", 2
+// "back"/"front" (high = false: the side at the box's min). What scenes name in "boundaries".
+inline const char* box_side_name(int axis, bool high) {
+  static const char* const names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
+  return names[axis][high ? 1 : 0];
+}
+
 // A lattice covering [lo - ghost dx, hi + ghost dx] with spacing dx; groups "left"/"right" (x),
 // "bottom"/"top" (y), "back"/"front" (z in 3D) hold the nodes on or beyond each side of [lo, hi].
 template <int Dim>

@@ -7,6 +7,7 @@
 
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
+#include "data/mpm/background.hpp"
 
 namespace bsms::mpm {
 
@@ -59,7 +60,6 @@ Mesh mesh_box_background(const BackgroundSpec& spec, int dim, const std::string&
   }
   gmsh::model::occ::synchronize();
   // Classify the sides before any rotation (tags survive the rotation).
-  const char* names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
   std::vector<int> sides[3][2];
   gmsh::vectorpair faces;
   gmsh::model::getEntities(faces, dim - 1);
@@ -84,7 +84,7 @@ Mesh mesh_box_background(const BackgroundSpec& spec, int dim, const std::string&
   for (int a = 0; a < dim; ++a)
     for (int s = 0; s < 2; ++s) {
       const int group = gmsh::model::addPhysicalGroup(dim - 1, sides[a][s]);
-      gmsh::model::setPhysicalName(dim - 1, group, names[a][s]);
+      gmsh::model::setPhysicalName(dim - 1, group, box_side_name(a, s != 0));
     }
   for (const auto& line : spec.embedded_lines) {
     const int a = gmsh::model::occ::addPoint(line[0], line[1], 0.0);

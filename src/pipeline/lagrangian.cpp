@@ -8,6 +8,7 @@
 #include <set>
 
 #include "core/radius_search.hpp"
+#include "data/mpm/background.hpp"
 #include "preprocess/contact_enhancement.hpp"
 
 namespace bsms {
@@ -82,10 +83,10 @@ void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double r
   for (const auto& b : scene["boundaries"])
     if (b.is_object() && b.contains("group") && b["group"].is_string())
       groups.insert(b["group"].get<std::string>());
-  const char* names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
   bool any = false;
   for (int a = 0; a < spec.dim; ++a) {
-    const bool lo = groups.count(names[a][0]) > 0, hi = groups.count(names[a][1]) > 0;
+    const bool lo = groups.count(mpm::box_side_name(a, false)) > 0,
+               hi = groups.count(mpm::box_side_name(a, true)) > 0;
     spec.wall_lo.push_back(lo ? background["min"].at(a).get<double>() : std::nan(""));
     spec.wall_hi.push_back(hi ? background["max"].at(a).get<double>() : std::nan(""));
     any = any || lo || hi;
@@ -182,7 +183,9 @@ std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json
       !background["element_size"].is_number() || background.value("rotation_deg", 0.0) != 0.0)
     return "the scene has no axis-aligned box background with an element_size";
   if (!spec.has_walls()) return "the model has no wall inputs";
-  const std::set<std::string> sides = {"left", "right", "bottom", "top", "back", "front"};
+  std::set<std::string> sides;
+  for (int a = 0; a < 3; ++a)
+    for (bool high : {false, true}) sides.insert(mpm::box_side_name(a, high));
   for (const auto& b : scene.value("boundaries", Json::array()))
     if (!b.is_object() || !b.contains("group") || !b["group"].is_string() ||
         sides.count(b["group"].get<std::string>()) == 0)

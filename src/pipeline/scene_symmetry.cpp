@@ -5,6 +5,7 @@
 #include <map>
 #include <numeric>
 
+#include "data/mpm/background.hpp"
 #include "pipeline/lagrangian.hpp"
 
 namespace bsms {
@@ -51,12 +52,11 @@ torch::Tensor BoxSymmetry::vectors_back(const torch::Tensor& v) const {
 
 TrajectoryMesh BoxSymmetry::mesh(const TrajectoryMesh& m) const {
   TrajectoryMesh out = m;
-  const int64_t n = m.num_nodes();
-  for (int64_t p = 0; p < n; ++p)
-    for (int i = 0; i < dim(); ++i)
-      out.mesh_pos[p * dim() + i] = static_cast<float>(
-          centre[i] +
-          sign[i] * (static_cast<double>(m.mesh_pos[p * dim() + source[i]]) - centre[source[i]]));
+  const auto mapped = points(torch::from_blob(const_cast<float*>(m.mesh_pos.data()),
+                                              {m.num_nodes(), dim()}, torch::kFloat32))
+                          .contiguous();
+  std::copy(mapped.data_ptr<float>(), mapped.data_ptr<float>() + mapped.numel(),
+            out.mesh_pos.begin());
   return out;
 }
 
@@ -92,10 +92,9 @@ std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim
   }
   out = {identity};
   // Boundary type of each side (axis, 0 = low, 1 = high); "" = no boundary there.
-  const char* names[3][2] = {{"left", "right"}, {"bottom", "top"}, {"back", "front"}};
   std::map<std::string, std::pair<int, int>> side_of;
   for (int a = 0; a < dim; ++a)
-    for (int s = 0; s < 2; ++s) side_of[names[a][s]] = {a, s};
+    for (int s = 0; s < 2; ++s) side_of[mpm::box_side_name(a, s != 0)] = {a, s};
   std::vector<std::vector<std::string>> type(dim, std::vector<std::string>(2));
   for (const auto& b : scene.value("boundaries", Json::array())) {
     const auto group = b.is_object() ? b.value("group", Json()) : Json();
