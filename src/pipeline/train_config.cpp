@@ -115,6 +115,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.features.noise_rigid_scale = f.opt<double>("noise_rigid_scale", c.features.noise_rigid_scale);
     require(c.features.noise_rigid_scale >= 0 && c.features.noise_rigid_scale <= 1,
             f.context("noise_rigid_scale"), "in [0, 1] (share of the noise's rigid part kept)");
+    c.features.augment = f.opt<std::string>("augment", c.features.augment);
+    require(c.features.augment == "off" || c.features.augment == "symmetries", f.context("augment"),
+            "\"off\" or \"symmetries\"");
     f.finish();
   }
   if (top.has("optimizer")) {
@@ -195,6 +198,7 @@ Json to_json(const TrainConfig& c) {
     f["rigid_loss_weight"] = c.features.rigid_loss_weight;
   if (c.features.noise_rigid_scale != defaults.noise_rigid_scale)
     f["noise_rigid_scale"] = c.features.noise_rigid_scale;
+  if (c.features.augment != defaults.augment) f["augment"] = c.features.augment;
   return j;
 }
 

@@ -86,6 +86,13 @@ struct FeatureConfig {
   // correction in the target is noise no training removes; 0 leaves noise that only deforms the
   // bodies. 1: the plain Gaussian noise.
   double noise_rigid_scale = 1.0;
+  // Training data augmentation (Lagrangian data): "symmetries" maps each noisy training sample
+  // (its frames and mesh positions, hence its target) by one symmetry of the data's box scene
+  // drawn uniformly (the group `bsms rollout --symmetrize` averages over: reflections and, where
+  // sides are equal, axis swaps that keep every side's boundary type and the gravity), so that the
+  // model learns from every mirror image of each state; validation stays on the data as stored.
+  // "off": the data as stored.
+  std::string augment = "off";
 };
 
 struct OptimizerConfig {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <set>
 #include <stdexcept>
 
@@ -157,6 +158,10 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
       throw InputError("features.history: " + std::to_string(config.features.history) +
                        " needs Lagrangian data (world_pos); " + train_data.location() +
                        " is Eulerian (velocity): set it to 1");
+    if (config.features.augment != "off")
+      throw InputError("features.augment: \"" + config.features.augment +
+                       "\" maps Lagrangian states (world_pos); " + train_data.location() +
+                       " is Eulerian (velocity): set it to \"off\"");
   }
   const bool public_layout = train_data.is_public_layout();
   const int mesh_dim = train_data.mesh(0).dim;
@@ -252,6 +257,20 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
       }
     }
   }
+  if (config.features.augment == "symmetries") {
+    std::string why;
+    r.augment = scene_symmetries(train_data.scene(), s.dim, &why);
+    if (r.augment.size() < 2)
+      throw InputError("features.augment: \"symmetries\" and " + train_data.location() + ": " +
+                       why + ", so there is no symmetry to augment with: set it to \"off\"");
+    if (s.mesh_dim != s.dim)
+      throw InputError(
+          "features.augment: \"symmetries\" maps mesh positions with the world's, "
+          "and " +
+          train_data.location() + " has " + std::to_string(s.mesh_dim) +
+          "-dimensional mesh positions in a " + std::to_string(s.dim) +
+          "-dimensional world: set it to \"off\"");
+  }
   return r;
 }
 
@@ -294,19 +313,40 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
   const int64_t noise_width = config.features.history_noise == "walk" ? r.spec.history : 1;
   std::vector<FrameState> states;
   std::vector<torch::Tensor> nexts, noise, drifts, truth_prevs, truth_curs;
+  std::deque<TrajectoryMesh> mapped_meshes;  // augmented samples' meshes (stable addresses)
   for (size_t k = 0; k < refs.size(); ++k) {
     LoadedSample s = unroll > 0
                          ? pushed_forward_sample(adapter, data, store, refs[k], unroll, *predictor)
                          : load_sample(data, store, refs[k], 0, r.spec.history);
+    // x_t's noise (and the older velocities' walk), drawn before the augmentation's symmetry
+    torch::Tensor raw;
+    if (noisy)
+      raw = torch::randn({s.state.cur.size(0), s.state.cur.size(1) * noise_width}, (*generators)[k],
+                         torch::kFloat32) *
+            config.features.noise_std;
+    if (noisy && !r.augment.empty()) {
+      // One symmetry of the scene, uniform over the group (the identity included). The raw noise
+      // is isotropic and independent per node, so it needs no map; its rigid part is taken on
+      // the mapped state below.
+      const auto pick = torch::randint(static_cast<int64_t>(r.augment.size()), {1},
+                                       (*generators)[k], torch::kInt64)
+                            .item<int64_t>();
+      const BoxSymmetry& g = r.augment[static_cast<size_t>(pick)];
+      if (!g.is_identity()) {
+        mapped_meshes.push_back(g.mesh(*s.state.mesh));
+        s.state.mesh = &mapped_meshes.back();
+        s.truth = g.points(s.truth.reshape({-1, s.truth.size(-1)})).view(s.truth.sizes());
+        s.state.prev = g.points(s.state.prev);
+        s.state.cur = g.points(s.state.cur);
+        s.state.next = g.points(s.state.next);
+        for (auto& older : s.state.older) older = g.points(older);
+        s.next = g.points(s.next);
+      }
+    }
+    if (noisy)
+      noise.push_back(adapter.scale_rigid_noise(s.state, raw, config.features.noise_rigid_scale));
     states.push_back(s.state);
     nexts.push_back(s.next);
-    if (noisy)
-      noise.push_back(adapter.scale_rigid_noise(
-          s.state,
-          torch::randn({s.state.cur.size(0), s.state.cur.size(1) * noise_width}, (*generators)[k],
-                       torch::kFloat32) *
-              config.features.noise_std,
-          config.features.noise_rigid_scale));
     if (unroll > 0) {  // the truth at t-1 and t, and how far the rollout drifted from it
       const int64_t frames = s.truth.size(0);
       truth_prevs.push_back(s.truth[frames - 3]);

@@ -17,6 +17,7 @@
 #include "pipeline/eulerian.hpp"
 #include "pipeline/graph_store.hpp"
 #include "pipeline/lagrangian.hpp"
+#include "pipeline/scene_symmetry.hpp"
 #include "pipeline/simulator.hpp"
 #include "pipeline/train_config.hpp"
 
@@ -45,12 +46,16 @@ struct ResolvedModel {
   int levels = 1;
   std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
   double momentum_residual = -1;  // measured on the training data when on
+  // features.augment "symmetries": the data's scene symmetries (identity first), one of which
+  // maps each noisy training sample; empty when off.
+  std::vector<BoxSymmetry> augment;
 
   Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
   ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
 };
 // InputError when the training data cannot train a model (no world_pos or velocity field, mixed
-// mesh dimensions, trajectories shorter than 3 frames).
+// mesh dimensions, trajectories shorter than 3 frames) or cannot be augmented as asked (an
+// Eulerian dataset, or a scene with no symmetry but the identity).
 ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data);
 
 // One training or validation batch and its target.
@@ -68,7 +73,9 @@ using Predictor = std::function<torch::Tensor(const Batch&)>;
 // truth at frames t-1-u' and t-u' (u' = min(u, t-1)) and is rolled out by the predictor to frame
 // t; the noise is added to that state and the target is the truth's next frame, corrected by
 // (1 - noise_gamma) times noise plus drift (Batch::noise), or with pushforward_target
-// "acceleration" the frame's own noisy target, as if the state had not drifted.
+// "acceleration" the frame's own noisy target, as if the state had not drifted. With r.augment,
+// each noisy sample (state, truth and mesh positions) is then mapped by one of its symmetries,
+// drawn from the sample's generator after its noise.
 TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
                             GraphStore& store, const std::vector<SampleRef>& refs,
                             std::vector<at::Generator>* generators,

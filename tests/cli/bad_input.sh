@@ -56,8 +56,8 @@ setup() {
     "$in/data" >run.json
   "$bsms" train run.json --out run --set data="$tmp/data" --threads 1 >/dev/null 2>&1
   # The same family under a slanted gravity: no reflection or axis swap keeps the scene.
-  "$bsms" generate "$src/configs/families/disks2d.json" --out data_slanted --trajectories 1 \
-    --split 0:0:1 --set frames=4 --set 'sample.count=[2,2]' --set 'scene.gravity=[1,2]' \
+  "$bsms" generate "$src/configs/families/disks2d.json" --out data_slanted --trajectories 3 \
+    --split 1:1:1 --set frames=4 --set 'sample.count=[2,2]' --set 'scene.gravity=[1,2]' \
     --threads 1 >/dev/null 2>&1
   cp -r run run_rolled
   "$bsms" rollout run_rolled --threads 1 >/dev/null 2>&1

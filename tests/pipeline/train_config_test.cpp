@@ -79,6 +79,10 @@ TEST(TrainConfig, BadValuesNameTheKey) {
                 .find("features.noise_rigid_scale"),
             std::string::npos);
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_rigid_scale": 0}})"), "");
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"augment": "mirror"}})")
+                .find("features.augment"),
+            std::string::npos);
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"augment": "symmetries"}})"), "");
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "walls"}})")
                 .find("features.momentum"),
             std::string::npos);
