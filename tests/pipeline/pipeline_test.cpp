@@ -430,6 +430,21 @@ TEST_F(PipelineTest, AugmentedSamplesAreStoredOnesMappedByTheScenesSymmetries) {
     EXPECT_TRUE(torch::equal(v.batch.cur, make(plain, plain_config, ref, 0, false).batch.cur));
   }
   EXPECT_EQ(seen.size(), 8u) << "96 uniform draws from a group of 8 missed a member";
+  // With training noise: the same draw as without augmentation (taken before the symmetry, so a
+  // run's noise does not depend on the key), added to the mapped state.
+  plain_config.features.noise_std = augment_config.features.noise_std = 1e-3;
+  for (int i = 0; i < 8; ++i) {
+    const SampleRef ref = draw_sample(train_data, 7, i, 0);
+    const TrainBatch a = make(plain, plain_config, ref, 300 + i, true);
+    const TrainBatch b = make(augmented, augment_config, ref, 300 + i, true);
+    ASSERT_TRUE(a.batch.noise.defined() && b.batch.noise.defined());
+    EXPECT_TRUE(torch::equal(a.batch.noise, b.batch.noise)) << "sample " << i;
+    bool image = false;
+    for (const BoxSymmetry& g : augmented.augment)
+      image = image || torch::allclose(b.batch.cur - b.batch.noise,
+                                       g.points(a.batch.cur - a.batch.noise), 0.0, 1e-5);
+    EXPECT_TRUE(image) << "sample " << i << ": noisy state is not a mapped state plus the noise";
+  }
   // No box in the fixture's scene: nothing to augment with, and the key says so.
   TrainConfig boxless = augment_config;
   boxless.data = (dir_ / "data").string();
