@@ -335,7 +335,8 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
       if (!g.is_identity()) {
         mapped_meshes.push_back(g.mesh(*s.state.mesh));
         s.state.mesh = &mapped_meshes.back();
-        s.truth = g.points(s.truth.reshape({-1, s.truth.size(-1)})).view(s.truth.sizes());
+        if (unroll > 0)  // the truth is read again only by pushforward's drift and target
+          s.truth = g.points(s.truth.reshape({-1, s.truth.size(-1)})).view(s.truth.sizes());
         s.state.prev = g.points(s.state.prev);
         s.state.cur = g.points(s.state.cur);
         s.state.next = g.points(s.state.next);

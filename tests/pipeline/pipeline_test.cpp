@@ -277,11 +277,14 @@ TEST_F(PipelineTest, EnsembleRolloutAveragesTheMembersAccelerations) {
   EXPECT_THROW(rollout(q), InputError);
 }
 
+// A square box with four slip walls and no gravity: a scene with the 8 symmetries of the square
+// (the group --symmetrize and features.augment read; wall inputs and momentum come from it too).
+const char* const kSlipBox =
+    R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}]}})";
+
 TEST_F(PipelineTest, SymmetrizedRolloutIsEquivariantToTheBoxsSymmetries) {
-  // The plate in a square box with four slip walls and no gravity (the scene the group is read
-  // from; wall inputs and momentum come from it too).
-  const char* box =
-      R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}]}})";
+  // The plate in the slip-walled square box.
+  const char* box = kSlipBox;
   const fs::path data = dir_ / "box_data";
   fs::create_directories(data);
   write_split(data, "train", 4, 12, 6, testing::dragged_plate, box);
@@ -378,8 +381,7 @@ TEST_F(PipelineTest, SymmetrizedRolloutIsEquivariantToTheBoxsSymmetries) {
 // vectors, every symmetry of the group turns up, and validation batches (no generators) and
 // scenes without a symmetry are left alone or refused.
 TEST_F(PipelineTest, AugmentedSamplesAreStoredOnesMappedByTheScenesSymmetries) {
-  const char* box =
-      R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}]}})";
+  const char* box = kSlipBox;
   const fs::path data = dir_ / "augment_data";
   fs::create_directories(data);
   write_split(data, "train", 3, 12, 6, testing::dragged_plate, box);
