@@ -458,6 +458,68 @@ TEST_F(PipelineTest, AugmentedSamplesAreStoredOnesMappedByTheScenesSymmetries) {
   }
 }
 
+// Augmentation with pushforward and two velocities seen: the sample is rolled out in the stored
+// frame, then mapped with its truth and older frames. With an equivariant predictor (zero
+// acceleration) the augmented sample is the plain one mapped: positions, both velocities in the
+// inputs, the rollout's drift (Batch::noise) and the target.
+TEST_F(PipelineTest, AugmentationMapsPushedForwardSamplesAndTheirHistory) {
+  const fs::path data = dir_ / "augment_push_data";
+  fs::create_directories(data);
+  write_split(data, "train", 2, 12, 6, testing::dragged_plate, kSlipBox);
+  TrainConfig plain_config;
+  plain_config.data = data.string();
+  plain_config.model.levels = 2;
+  plain_config.features.noise_std = 0.0;
+  plain_config.features.history = 2;
+  plain_config.features.pushforward = 2;
+  TrainConfig augment_config = plain_config;
+  augment_config.features.augment = "symmetries";
+  const Dataset train_data = Dataset::open_split(data.string(), "train");
+  const ResolvedModel plain = resolve_model(plain_config, train_data);
+  const ResolvedModel augmented = resolve_model(augment_config, train_data);
+  ASSERT_EQ(augmented.augment.size(), 8u);
+  const int dim = plain.spec.dim;
+  GraphStore store(plain_config.model.seeding, plain.levels, {});
+  const Predictor zero = [](const Batch& b) { return torch::zeros_like(b.cur); };
+  auto make = [&](const ResolvedModel& r, const TrainConfig& c, const SampleRef& ref,
+                  uint64_t seed) {
+    std::vector<at::Generator> generators = {at::detail::createCPUGenerator(seed)};
+    return make_train_batch(r, c, train_data, store, {ref}, &generators, &zero);
+  };
+  std::set<size_t> seen;
+  int drifted = 0;
+  for (int i = 0; i < 48; ++i) {
+    SampleRef ref = draw_sample(train_data, 9, i, 0);
+    ref.frame = std::max<int64_t>(ref.frame, 4);  // room for two pushed steps and an older frame
+    const TrainBatch a = make(plain, plain_config, ref, 500 + i);
+    const TrainBatch b = make(augmented, augment_config, ref, 500 + i);
+    ASSERT_TRUE(a.batch.noise.defined() && b.batch.noise.defined());
+    size_t match = augmented.augment.size();
+    for (size_t k = 0; k < augmented.augment.size() && match == augmented.augment.size(); ++k)
+      if (torch::allclose(b.batch.cur, augmented.augment[k].points(a.batch.cur), 0.0, 1e-5))
+        match = k;
+    ASSERT_LT(match, augmented.augment.size()) << "sample " << i << " is no image of the plain one";
+    seen.insert(match);
+    const BoxSymmetry& g = augmented.augment[match];
+    EXPECT_TRUE(torch::allclose(b.batch.prev, g.points(a.batch.prev), 0.0, 1e-5)) << "sample " << i;
+    for (int k = 0; k < 2; ++k)  // x_t - x_{t-1} and x_{t-1} - x_{t-2}
+      EXPECT_LT((b.batch.inputs.narrow(1, k * dim, dim) -
+                 g.vectors(a.batch.inputs.narrow(1, k * dim, dim)))
+                    .abs()
+                    .max()
+                    .item<double>(),
+                1e-6)
+          << "sample " << i << ", velocity " << k;
+    EXPECT_LT((b.batch.noise - g.vectors(a.batch.noise)).abs().max().item<double>(), 1e-6)
+        << "sample " << i << ": the rollout's drift";
+    EXPECT_LT((b.target - g.vectors(a.target)).abs().max().item<double>(), 5e-7) << "sample " << i;
+    if (a.batch.noise.abs().max().item<double>() > 1e-5) ++drifted;
+  }
+  EXPECT_GE(seen.size(), 6u);
+  // The zero predictor drifts from the dragged plate's truth: the drift is really mapped.
+  EXPECT_GT(drifted, 24);
+}
+
 TEST_F(PipelineTest, ResumeContinuesExactly) {
   TrainRequest straight;
   straight.config_path = write_config(dir_, dir_ / "data", "mgn", 40);
