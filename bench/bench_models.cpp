@@ -195,7 +195,7 @@ void register_all() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bsms::ensure_omp_wait_policy(argv);  // as the bsms executable does (core/runtime.hpp)
+  bsms::ensure_process_environment(argv);  // as the bsms executable does (core/runtime.hpp)
   bsms::tune_allocator();              // as the bsms executable does
   const char* env_threads = std::getenv("BSMS_BENCH_THREADS");
   const int threads = bsms::set_num_threads(env_threads ? std::atoi(env_threads) : 2);

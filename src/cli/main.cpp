@@ -74,14 +74,15 @@ RemoveOnFailure::~RemoveOnFailure() {
 }  // namespace bsms::cli
 
 int main(int argc, char** argv) {
-  bsms::ensure_omp_wait_policy(argv);  // libgomp's wait policy (core/runtime.hpp)
+  bsms::ensure_process_environment(argv);  // OpenMP wait policy, OpenBLAS kernels (core/runtime.hpp)
   bsms::tune_allocator();
   bsms::cli::program_arguments().assign(argv, argv + argc);
 
   CLI::App app{
       "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "bsms 0.1");
+  const std::string blas = bsms::blas_config();
+  app.set_version_flag("--version", "bsms 0.1" + (blas.empty() ? "" : "\nBLAS: " + blas));
   app.footer(
       "Exit codes: 0 success, 1 internal error (a bug to report), 2 bad input, 3 numerical "
       "failure, 4 I/O failure, 5 distributed training lost a rank.");

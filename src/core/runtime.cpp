@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -34,11 +35,63 @@ bool single_threaded_blas() {
   return set != nullptr;
 }
 
-void ensure_omp_wait_policy(char** argv) {
-  if (std::getenv("OMP_WAIT_POLICY") != nullptr || std::getenv("GOMP_SPINCOUNT") != nullptr) return;
-  setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
-  setenv("GOMP_SPINCOUNT", "100000", 1);
-  execv("/proc/self/exe", argv);
+CpuFeatures cpu_features() {
+  __builtin_cpu_init();
+  CpuFeatures cpu;
+  cpu.avx2 = __builtin_cpu_supports("avx2") != 0;
+  cpu.fma = __builtin_cpu_supports("fma") != 0;
+  cpu.avx512f = __builtin_cpu_supports("avx512f") != 0;
+  cpu.avx512bw = __builtin_cpu_supports("avx512bw") != 0;
+  cpu.avx512dq = __builtin_cpu_supports("avx512dq") != 0;
+  cpu.avx512vl = __builtin_cpu_supports("avx512vl") != 0;
+  cpu.avx512cd = __builtin_cpu_supports("avx512cd") != 0;
+  return cpu;
+}
+
+namespace {
+std::string openblas_string(const char* symbol) {
+  using Getter = char* (*)();
+  auto get = reinterpret_cast<Getter>(dlsym(RTLD_DEFAULT, symbol));
+  if (get == nullptr) return "";
+  const char* text = get();
+  return text == nullptr ? "" : std::string(text);
+}
+}  // namespace
+
+std::string blas_core() { return openblas_string("openblas_get_corename"); }
+std::string blas_config() { return openblas_string("openblas_get_config"); }
+
+std::string blas_core_override(const std::string& detected_core, const CpuFeatures& cpu) {
+  if (detected_core.empty()) return "";  // not OpenBLAS: nothing to steer
+  std::string core = detected_core;
+  std::transform(core.begin(), core.end(), core.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  // OpenBLAS's x86-64 kernel sets with AVX2 (Haswell; Zen reuses them) or AVX-512.
+  static const char* const vector_cores[] = {"haswell", "zen", "skylakex", "cooperlake",
+                                             "sapphirerapids"};
+  for (const char* name : vector_cores)
+    if (core == name) return "";
+  if (cpu.avx512f && cpu.avx512bw && cpu.avx512dq && cpu.avx512vl && cpu.avx512cd)
+    return "SkylakeX";
+  if (cpu.avx2 && cpu.fma) return "Haswell";
+  return "";
+}
+
+void ensure_process_environment(char** argv) {
+  bool changed = false;
+  if (std::getenv("OMP_WAIT_POLICY") == nullptr && std::getenv("GOMP_SPINCOUNT") == nullptr) {
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+    setenv("GOMP_SPINCOUNT", "100000", 1);
+    changed = true;
+  }
+  if (std::getenv("OPENBLAS_CORETYPE") == nullptr) {
+    const std::string core = blas_core_override(blas_core(), cpu_features());
+    if (!core.empty()) {
+      setenv("OPENBLAS_CORETYPE", core.c_str(), 1);
+      changed = true;
+    }
+  }
+  if (changed) execv("/proc/self/exe", argv);
 }
 
 void tune_allocator() {

@@ -24,15 +24,42 @@ bool single_threaded_blas();
 // CPU time in the kernel, training step 326 -> 275 ms on the 2.6K-node benchmark mesh).
 void tune_allocator();
 
-// libgomp reads its wait policy once, when it loads. Unless the user set OMP_WAIT_POLICY or
-// GOMP_SPINCOUNT, re-executes the program (argv, via /proc/self/exe) with OMP_WAIT_POLICY=PASSIVE
-// and GOMP_SPINCOUNT=100000: an idle worker spins ~1 ms, then sleeps. GNU's default (3 ms of
-// spinning, throttled) stole the second core from the original model's serial work (1.8x slower
-// training, DESIGN.md); pure PASSIVE (no spin) pays a futex wake-up at every parallel region.
-// Measured on 2 cores, in alternating runs: the 2.6K-node BSMS training step 271-301 ms (PASSIVE)
-// -> 223-243 ms, inference 68-78 -> 59-64 ms, a 2D UMLS-MPM step 1.19-1.31 -> 0.81-0.94 ms.
+// The CPU features that decide which OpenBLAS kernels can run (GCC's __builtin_cpu_supports,
+// which also checks that the OS saves the AVX / AVX-512 registers).
+struct CpuFeatures {
+  bool avx2 = false, fma = false;
+  bool avx512f = false, avx512bw = false, avx512dq = false, avx512vl = false, avx512cd = false;
+};
+CpuFeatures cpu_features();
+
+// OpenBLAS's kernel set in this process (openblas_get_corename, e.g. "SkylakeX", "Haswell",
+// "Zen", "Prescott") and its build line (openblas_get_config); "" when no OpenBLAS is loaded.
+std::string blas_core();
+std::string blas_config();
+
+// OpenBLAS built with DYNAMIC_ARCH (Debian's) picks its kernels from the CPU's family and model
+// when it loads. A model it does not know falls back to Prescott, SSE3 kernels at a fraction of
+// the speed: Debian 12's OpenBLAS 0.3.21 on this machine kind's Intel Xeon (family 6, model 207)
+// ran the 2.6K-node BSMS training step in 626-662 ms against 243-249 ms with the AVX-512 kernels
+// (bench_models train/bsms/2.6K, 2 threads). Returns the OPENBLAS_CORETYPE to force when the
+// detected kernels use neither AVX2 nor AVX-512 although the CPU has them: "SkylakeX" (AVX-512
+// F/BW/DQ/VL/CD), else "Haswell" (AVX2 + FMA); "" when OpenBLAS's own choice stands (an AVX2 or
+// AVX-512 core, a CPU without AVX2 + FMA, or no OpenBLAS).
+std::string blas_core_override(const std::string& detected_core, const CpuFeatures& cpu);
+
+// Environment that must be in place before libgomp and OpenBLAS load, so the program re-executes
+// itself (argv, via /proc/self/exe) when it has to change any of it:
+// - libgomp's wait policy: unless the user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, sets
+//   OMP_WAIT_POLICY=PASSIVE and GOMP_SPINCOUNT=100000: an idle worker spins ~1 ms, then sleeps.
+//   GNU's default (3 ms of spinning, throttled) stole the second core from the original model's
+//   serial work (1.8x slower training, DESIGN.md); pure PASSIVE (no spin) pays a futex wake-up
+//   at every parallel region. Measured on 2 cores, in alternating runs: the 2.6K-node BSMS
+//   training step 271-301 ms (PASSIVE) -> 223-243 ms, inference 68-78 -> 59-64 ms, a 2D UMLS-MPM
+//   step 1.19-1.31 -> 0.81-0.94 ms.
+// - OpenBLAS's kernels: unless the user set OPENBLAS_CORETYPE (which is also how to opt out),
+//   sets blas_core_override's choice when there is one.
 // Returns only when nothing had to change or the re-exec failed (then: slower, still correct).
-void ensure_omp_wait_policy(char** argv);
+void ensure_process_environment(char** argv);
 
 class Stopwatch {
  public:

@@ -20,6 +20,7 @@ Json to_json(const TrainStats& s) {
             {"final_valid_baseline", measure_json(s.final_valid_baseline)},
             {"num_parameters", s.num_parameters},
             {"valid_split", s.valid_split}};
+  if (!s.blas.empty()) j["blas"] = s.blas;
   if (s.allreduce_ms_per_step) j["allreduce_ms_per_step"] = *s.allreduce_ms_per_step;
   if (s.allreduce_calls_per_step) j["allreduce_calls_per_step"] = *s.allreduce_calls_per_step;
   return j;
@@ -45,6 +46,7 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
   s.valid_split = r.get<std::string>("valid_split");
   require(s.valid_split == "valid" || s.valid_split == "train", r.context("valid_split"),
           "\"valid\" or \"train\"");
+  if (r.has("blas")) s.blas = r.get<std::string>("blas");
   if (r.has("allreduce_ms_per_step"))
     s.allreduce_ms_per_step = r.get<double>("allreduce_ms_per_step");
   if (r.has("allreduce_calls_per_step"))

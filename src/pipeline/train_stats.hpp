@@ -25,6 +25,9 @@ struct TrainStats {
   double final_valid_baseline = 0.0;  // its zero-prediction loss (NaN: none)
   int64_t num_parameters = 0;
   std::string valid_split = "valid";  // "valid", or "train" when the dataset has none
+  // The BLAS build and kernels the session ran with (OpenBLAS's openblas_get_config, e.g.
+  // "OpenBLAS 0.3.21 ... DYNAMIC_ARCH ... SkylakeX ..."); empty when not OpenBLAS or not recorded.
+  std::string blas;
   // Data-parallel sessions: rank 0's time in the gradient all-reduce per step (waiting for slower
   // ranks included) and the all-reduce calls per step; none for a single process.
   std::optional<double> allreduce_ms_per_step, allreduce_calls_per_step;

@@ -447,6 +447,7 @@ TrainResult train(const TrainRequest& request) {
   stats.final_valid_baseline = last_valid.baseline;
   stats.num_parameters = simulator->num_parameters();
   stats.valid_split = has_valid ? "valid" : "train";
+  stats.blas = blas_config();
   if (comm && session_steps > 0) {
     stats.allreduce_ms_per_step = (comm->collective_ms - collective_ms_before) / session_steps;
     stats.allreduce_calls_per_step =
