@@ -196,7 +196,7 @@ void register_all() {
 
 int main(int argc, char** argv) {
   bsms::ensure_process_environment(argv);  // as the bsms executable does (core/runtime.hpp)
-  bsms::tune_allocator();              // as the bsms executable does
+  bsms::tune_allocator();                  // as the bsms executable does
   const char* env_threads = std::getenv("BSMS_BENCH_THREADS");
   const int threads = bsms::set_num_threads(env_threads ? std::atoi(env_threads) : 2);
   bsms::configure_threads(threads);

@@ -74,7 +74,8 @@ RemoveOnFailure::~RemoveOnFailure() {
 }  // namespace bsms::cli
 
 int main(int argc, char** argv) {
-  bsms::ensure_process_environment(argv);  // OpenMP wait policy, OpenBLAS kernels (core/runtime.hpp)
+  // OpenMP's wait policy and OpenBLAS's kernels, before either library starts (core/runtime.hpp).
+  bsms::ensure_process_environment(argv);
   bsms::tune_allocator();
   bsms::cli::program_arguments().assign(argv, argv + argc);
 

@@ -58,8 +58,12 @@ std::string openblas_string(const char* symbol) {
 }
 }  // namespace
 
-std::string blas_core() { return openblas_string("openblas_get_corename"); }
-std::string blas_config() { return openblas_string("openblas_get_config"); }
+std::string blas_core() {
+  return openblas_string("openblas_get_corename");
+}
+std::string blas_config() {
+  return openblas_string("openblas_get_config");
+}
 
 std::string blas_core_override(const std::string& detected_core, const CpuFeatures& cpu) {
   if (detected_core.empty()) return "";  // not OpenBLAS: nothing to steer
