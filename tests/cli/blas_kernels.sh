@@ -8,7 +8,7 @@
 set -u
 bsms=$1
 status=0
-core_of() { sed -n 's/^BLAS: OpenBLAS .* \(Prescott\|Core2\|Penryn\|Dunnington\|Nehalem\|Sandybridge\|Haswell\|Zen\|SkylakeX\|CooperLake\|SapphireRapids\|Atom\|Barcelona\|Bulldozer\|Piledriver\|Steamroller\|Excavator\|Opteron\) .*/\1/p'; }
+core_of() { sed -n 's/^BLAS: OpenBLAS .* \([A-Za-z0-9]*\) MAX_THREADS=.*/\1/p'; }  # the kernel set's name
 vector_core='^(Haswell|Zen|SkylakeX|CooperLake|SapphireRapids)$'
 
 out=$(env -u OPENBLAS_CORETYPE -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT "$bsms" --version)
