@@ -37,13 +37,21 @@ const int64_t* ptr(const torch::Tensor& t) {
   return t.data_ptr<int64_t>();
 }
 
-// Row kernels on raw float rows of `channels` values. Cloned for x86-64-v3 (AVX2, FMA) with a
-// baseline fallback chosen at load time; `omp simd` lets the reductions vectorise.
+// Row kernels on raw float rows of `channels` values. Cloned for x86-64-v4 (AVX-512) and
+// x86-64-v3 (AVX2, FMA) with a baseline fallback chosen at load time; `omp simd` lets the
+// reductions vectorise.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define BSMS_ROW_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default")))
+#define BSMS_ROW_KERNEL \
+  __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define BSMS_ROW_KERNEL
 #endif
+
+// max(x, 0) by value: std::max returns a reference to one of its arguments, which keeps GCC from
+// vectorising the loops below (measured: scalar blends, ~6 % of a small-graph rollout each).
+inline float relu_value(float x) {
+  return x > 0.0f ? x : 0.0f;
+}
 
 // o = Σ_q w[q] · x[idx[q]] for q in [q0, q1); w may be null (weights 1).
 BSMS_ROW_KERNEL void gather_sum_row(const float* x, const int64_t* idx, const float* w, int64_t q0,
@@ -89,7 +97,7 @@ BSMS_ROW_KERNEL void bias_relu_rows(float* y, const float* bias, bool relu, int6
     }
     if (relu) {
 #pragma omp simd
-      for (int64_t c = 0; c < channels; ++c) y[i + c] = std::max(y[i + c], 0.0f);
+      for (int64_t c = 0; c < channels; ++c) y[i + c] = relu_value(y[i + c]);
     }
   }
 }
@@ -107,7 +115,7 @@ BSMS_ROW_KERNEL void edge_first_row(const float* base, const float* bias, const 
     for (int64_t c = 0; c < channels; ++c) o[c] += fq * w[c];
   }
 #pragma omp simd
-  for (int64_t c = 0; c < channels; ++c) o[c] = std::max(o[c], 0.0f);
+  for (int64_t c = 0; c < channels; ++c) o[c] = relu_value(o[c]);
 }
 
 // Layer norm of x + bias (no affine): returns (mean, 1/std) and adds the normalised row to o.
@@ -128,6 +136,40 @@ BSMS_ROW_KERNEL void layer_norm_accumulate_row(const float* x, const float* bias
   stats[1] = rstd;
 #pragma omp simd
   for (int64_t c = 0; c < channels; ++c) o[c] += (x[c] + bias[c] - mean) * rstd;
+}
+
+// y = layer_norm(y + bias) in place for rows [r0, r1) (no affine, like at::layer_norm).
+BSMS_ROW_KERNEL void bias_layer_norm_rows(float* y, const float* bias, int64_t r0, int64_t r1,
+                                          int64_t channels, float eps) {
+  for (int64_t i = r0 * channels; i < r1 * channels; i += channels) {
+    float* row = y + i;
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) row[c] += bias[c];
+    float sum = 0.0f;
+#pragma omp simd reduction(+ : sum)
+    for (int64_t c = 0; c < channels; ++c) sum += row[c];
+    const float mean = sum / static_cast<float>(channels);
+    float var = 0.0f;
+#pragma omp simd reduction(+ : var)
+    for (int64_t c = 0; c < channels; ++c) {
+      const float d = row[c] - mean;
+      var += d * d;
+    }
+    const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + eps);
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) row[c] = (row[c] - mean) * rstd;
+  }
+}
+
+// acc[q, :] += f[q] · g for q in [0, k): one edge's outer product, acc [K, C] (C contiguous).
+BSMS_ROW_KERNEL void outer_accumulate_row(const float* g, const float* f, int64_t k,
+                                          int64_t channels, float* acc) {
+  for (int64_t q = 0; q < k; ++q) {
+    const float fq = f[q];
+    float* a = acc + q * channels;
+#pragma omp simd
+    for (int64_t c = 0; c < channels; ++c) a[c] += fq * g[c];
+  }
 }
 
 // Layer-norm backward for one row: d = rstd (g - mean(g) - x̂ mean(g x̂)); sum_d += d.
@@ -306,7 +348,26 @@ struct EdgeFirstLayer : torch::autograd::Function<EdgeFirstLayer> {
     const int64_t nodes = ctx->saved_data["num_nodes"].toInt();
     torch::Tensor grad_features, grad_weight, ga, gb;
     if (ctx->needs_input_grad(1)) grad_features = masked.mm(weight);
-    if (ctx->needs_input_grad(2)) grad_weight = masked.t().mm(features);
+    if (ctx->needs_input_grad(2)) {
+      // gradᵀ · features [C, K] with K the few edge features: BLAS's small-matrix path ran this
+      // long, thin product at ~15 GFLOP/s on one thread; here as outer products over fixed blocks
+      // of edges (the sum does not depend on the thread count).
+      const int64_t rows = masked.size(0), channels = masked.size(1), k = features.size(1);
+      const int64_t block = std::max<int64_t>(512, (rows + 15) / 16);
+      const int64_t blocks = std::max<int64_t>(1, (rows + block - 1) / block);
+      auto partial = torch::zeros({blocks, k, channels}, masked.options());
+      const float* pg = masked.data_ptr<float>();
+      const float* pf = features.data_ptr<float>();
+      float* pp = partial.data_ptr<float>();
+      at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
+        for (int64_t blk = b0; blk < b1; ++blk) {
+          for (int64_t e = blk * block; e < std::min(rows, (blk + 1) * block); ++e)
+            outer_accumulate_row(pg + e * channels, pf + e * k, k, channels,
+                                 pp + blk * k * channels);
+        }
+      });
+      grad_weight = partial.sum(0).t().contiguous();
+    }
     if (ctx->needs_input_grad(4)) {
       ga = segment_sum_tensor(masked, ctx->saved_data["sender_offsets"].toTensor(),
                               ctx->saved_data["sender_order"].toTensor(), nodes);
@@ -345,7 +406,15 @@ void parallel_blocks(int64_t rows, int64_t min_rows, const Fn& fn) {
   });
 }
 
-constexpr int64_t kMinGemmRows = 256;
+// Rows per block of a weight gradient (a sum over fixed blocks: thread-count independent).
+constexpr int64_t kMinWeightGradRows = 128;
+// Fewest rows a worker of a forward GEMM (or of an input gradient) takes: small graphs (a ~400-node
+// mesh and its coarse levels) are split over the threads too; row blocks do not change any row's
+// result.
+constexpr int64_t kMinForwardRows = 32;
+// Fewest edges a worker of the tiled edge kernels takes: small edge sets (contacts, coarse levels)
+// are split too, in tiles shorter than kTile.
+constexpr int64_t kMinPartEdges = 32;
 
 struct LinearFn : torch::autograd::Function<LinearFn> {
   static torch::Tensor forward(AutogradContext* ctx, const torch::Tensor& x_in,
@@ -365,7 +434,7 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
     auto y = torch::empty({rows, out_size}, x.options());
     auto wt = weight.t();
     const float* pb = has_bias ? bias.data_ptr<float>() : nullptr;
-    parallel_blocks(rows, kMinGemmRows, [&](int64_t r0, int64_t r1) {
+    parallel_blocks(rows, kMinForwardRows, [&](int64_t r0, int64_t r1) {
       auto yb = y.slice(0, r0, r1);
       at::mm_out(yb, x.slice(0, r0, r1), wt);
       if (pb || relu) bias_relu_rows(y.data_ptr<float>(), pb, relu, r0, r1, out_size);
@@ -398,7 +467,7 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
     torch::Tensor grad_x, grad_weight;
     if (ctx->needs_input_grad(0)) {
       grad_x = torch::empty_like(x);
-      parallel_blocks(x.size(0), kMinGemmRows, [&](int64_t r0, int64_t r1) {
+      parallel_blocks(x.size(0), kMinForwardRows, [&](int64_t r0, int64_t r1) {
         auto gb = grad_x.slice(0, r0, r1);
         at::mm_out(gb, grad.slice(0, r0, r1), weight);
       });
@@ -408,7 +477,7 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
       // thread count): each GEMM packs only its own rows of grad and x, where splitting dW over
       // output channels would make every thread pack all of x.
       const int64_t rows = x.size(0);
-      const int64_t block = std::max<int64_t>(kMinGemmRows, (rows + 7) / 8);
+      const int64_t block = std::max<int64_t>(kMinWeightGradRows, (rows + 7) / 8);
       const int64_t blocks = std::max<int64_t>(1, (rows + block - 1) / block);
       auto partial = torch::empty({blocks, weight.size(0), weight.size(1)}, weight.options());
       parallel_blocks(blocks, 1, [&](int64_t b0, int64_t b1) {
@@ -545,6 +614,7 @@ struct SparseTransition : torch::autograd::Function<SparseTransition> {
 struct TiledEdgeMlp {
   torch::Tensor x, a, b, w1, w2, w3, b1, b2, b3;
   int64_t channels = 0, k = 0, nodes = 0;
+  bool ends_per_edge = false;  // a [E, C] per edge, b one zero row
 };
 
 TiledEdgeMlp checked_tiled_edge_mlp(const char* kernel, const char* x_name,
@@ -557,14 +627,16 @@ TiledEdgeMlp checked_tiled_edge_mlp(const char* kernel, const char* x_name,
   const std::string name(kernel);
   if (torch::GradMode::is_enabled()) {
     for (const auto* t : {&x_in, &w1_in, &b1_in, &a_in, &b_in, &w2_in, &b2_in, &w3_in, &b3_in}) {
-      if (t->requires_grad())
+      if (t->defined() && t->requires_grad())
         throw InputError("graph kernel: " + name + " is for inference (no gradients)");
     }
   }
   TiledEdgeMlp m;
   m.x = checked_float(x_in, x_name);
   m.a = checked_float(a_in, "a");
-  m.b = checked_float(b_in, "b");
+  // No b: a holds both endpoint terms of each edge (one row per edge).
+  m.ends_per_edge = !b_in.defined();
+  m.b = m.ends_per_edge ? torch::zeros({1, m.a.size(1)}, m.a.options()) : checked_float(b_in, "b");
   m.w1 = checked_float(w1_in, "w1");
   m.w2 = checked_float(w2_in, "w2");
   m.w3 = checked_float(w3_in, "w3");
@@ -572,8 +644,8 @@ TiledEdgeMlp checked_tiled_edge_mlp(const char* kernel, const char* x_name,
   m.b2 = b2_in.contiguous();
   m.b3 = b3_in.contiguous();
   check_edges(m.x, edges, x_name, true);
-  check_edges(m.a, edges, "a", false);
-  check_edges(m.b, edges, "b", false);
+  check_edges(m.a, edges, "a", m.ends_per_edge);
+  if (!m.ends_per_edge) check_edges(m.b, edges, "b", false);
   const int64_t c = m.a.size(1), k = m.x.size(1);
   if (m.b.size(1) != c || m.w1.size(0) != c || m.w1.size(1) != k || m.b1.numel() != c ||
       m.w2.size(0) != c || m.w2.size(1) != c || m.b2.numel() != c || m.w3.size(0) != c ||
@@ -587,10 +659,10 @@ TiledEdgeMlp checked_tiled_edge_mlp(const char* kernel, const char* x_name,
 }
 
 // Receiver ranges [bounds[p], bounds[p+1]) holding about equal numbers of edges, one per worker
-// (at most one per `tile` edges), so each worker alone adds to its receivers' output rows.
-std::vector<int64_t> receiver_ranges(const int64_t* off, int64_t nodes, int64_t tile) {
+// (at most one per `min_edges` edges), so each worker alone adds to its receivers' output rows.
+std::vector<int64_t> receiver_ranges(const int64_t* off, int64_t nodes, int64_t min_edges) {
   const int64_t threads = at::in_parallel_region() ? 1 : at::get_num_threads();
-  const int64_t parts = std::max<int64_t>(1, std::min<int64_t>(threads, off[nodes] / tile));
+  const int64_t parts = std::max<int64_t>(1, std::min<int64_t>(threads, off[nodes] / min_edges));
   std::vector<int64_t> bounds(parts + 1, nodes);
   for (int64_t p = 0; p < parts; ++p)
     bounds[p] = std::lower_bound(off, off + nodes + 1, off[nodes] * p / parts) - off;
@@ -640,7 +712,7 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
   constexpr int64_t kTile = 256;  // edges per tile: three [256, C] buffers stay in L2
   // Each worker owns a range of receivers holding about the same number of edges, so it alone
   // adds to their output rows.
-  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kTile);
+  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kMinPartEdges);
   const int64_t parts = static_cast<int64_t>(bounds.size()) - 1;
   parallel_blocks(parts, 1, [&](int64_t p0, int64_t p1) {
     auto h1 = torch::empty({kTile, channels}, a.options());
@@ -655,8 +727,10 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
       const int64_t n = std::min(kTile, off[j1] - q0);
       for (int64_t t = 0; t < n; ++t) {
         const int64_t e = order[q0 + t];
-        edge_first_row(nullptr, pb1, pa + s[e] * channels, pb + r[e] * channels, pf + e * k, pw1, k,
-                       channels, ph1 + t * channels);
+        const float* ends_a = m.ends_per_edge ? pa + e * channels : pa + s[e] * channels;
+        const float* ends_b = m.ends_per_edge ? pb : pb + r[e] * channels;
+        edge_first_row(nullptr, pb1, ends_a, ends_b, pf + e * k, pw1, k, channels,
+                       ph1 + t * channels);
       }
       auto h2n = h2.narrow(0, 0, n);
       at::mm_out(h2n, h1.narrow(0, 0, n), w2t);
@@ -683,6 +757,7 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
   const TiledEdgeMlp m =
       checked_tiled_edge_mlp("edge_latent_update", "latent", latent_in, w1_in, b1_in, a_in, b_in,
                              w2_in, b2_in, w3_in, b3_in, edges, true);
+  if (m.ends_per_edge) throw InputError("graph kernel: edge_latent_update needs b (one per node)");
   const auto &latent = m.x, &a = m.a, &b = m.b, &w1 = m.w1, &w2 = m.w2, &w3 = m.w3;
   const auto &b1 = m.b1, &b2 = m.b2, &b3 = m.b3;
   const int64_t channels = m.channels, k = m.k, nodes = m.nodes;
@@ -702,7 +777,7 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
   float* po = out.data_ptr<float>();
   float* plo = latent_out.data_ptr<float>();
   constexpr int64_t kTile = 256;
-  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kTile);
+  const std::vector<int64_t> bounds = receiver_ranges(off, nodes, kMinPartEdges);
   const int64_t parts = static_cast<int64_t>(bounds.size()) - 1;
   parallel_blocks(parts, 1, [&](int64_t p0, int64_t p1) {
     auto g = torch::empty({kTile, k}, a.options());
@@ -726,7 +801,7 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
         const float* as = pa + s[e] * channels;
         const float* br = pb + r[e] * channels;
 #pragma omp simd
-        for (int64_t c = 0; c < channels; ++c) o[c] = std::max(o[c] + pb1[c] + as[c] + br[c], 0.0f);
+        for (int64_t c = 0; c < channels; ++c) o[c] = relu_value(o[c] + pb1[c] + as[c] + br[c]);
       }
       auto h2n = h2.narrow(0, 0, n);
       at::mm_out(h2n, h1n, w2t);
@@ -764,7 +839,117 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
 torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
                      bool relu) {
   RECORD_FUNCTION("bsms::linear", std::vector<c10::IValue>());
+  if (!torch::GradMode::is_enabled()) return mlp_inference({x}, {{weight, bias, relu}}, false, {});
   return LinearFn::apply(x, weight, bias.defined() ? bias : torch::empty({}), relu);
+}
+
+torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
+                            const std::vector<DenseLayer>& layers, bool layer_norm,
+                            const std::vector<torch::Tensor>& part_rows) {
+  RECORD_FUNCTION("bsms::mlp_inference", std::vector<c10::IValue>());
+  if (parts.empty() || layers.empty())
+    throw InputError("mlp_inference: needs at least one input part and one layer");
+  if (!part_rows.empty() && (part_rows.size() != parts.size() || part_rows[0].defined()))
+    throw InputError("mlp_inference: part_rows needs one entry per part, the first one dense");
+  std::vector<torch::Tensor> x, at_rows(parts.size());
+  int64_t in = 0;
+  for (size_t p = 0; p < parts.size(); ++p) {
+    x.push_back(checked_float(parts[p], "x").detach());
+    const bool sparse = p < part_rows.size() && part_rows[p].defined();
+    if (sparse) {
+      at_rows[p] = part_rows[p].to(torch::kInt64).contiguous();
+      if (at_rows[p].dim() != 1 || at_rows[p].size(0) != x.back().size(0))
+        throw InputError("mlp_inference: a sparse part needs one row index per value row");
+    } else if (x.back().size(0) != x.front().size(0)) {
+      throw InputError("mlp_inference: input parts have different row counts");
+    }
+    in += x.back().size(1);
+  }
+  const int64_t rows = x.front().size(0);
+  for (const auto& r : at_rows) {
+    if (!r.defined() || r.numel() == 0) continue;
+    const int64_t* pr = r.data_ptr<int64_t>();
+    if (!std::is_sorted(pr, pr + r.numel()) || pr[0] < 0 || pr[r.numel() - 1] >= rows ||
+        std::adjacent_find(pr, pr + r.numel()) != pr + r.numel())
+      throw InputError("mlp_inference: sparse part rows must be distinct, ascending and < " +
+                       std::to_string(rows));
+  }
+  // Per layer: the transposed weight (a view), its bias pointer (or null) and its width.
+  std::vector<torch::Tensor> wt, bias;
+  std::vector<const float*> pb;
+  int64_t width = in, widest = 0;
+  for (const auto& layer : layers) {
+    const auto w = checked_float(layer.weight, "weight").detach();
+    if (w.size(1) != width)
+      throw InputError("linear: input has " + std::to_string(width) + " channels, weight expects " +
+                       std::to_string(w.size(1)));
+    width = w.size(0);
+    widest = std::max(widest, width);
+    wt.push_back(w.t());
+    const bool has_bias = layer.bias.defined() && layer.bias.dim() == 1;
+    if (has_bias && layer.bias.numel() != width) throw InputError("linear: bias size mismatch");
+    bias.push_back(has_bias ? layer.bias.detach().contiguous() : torch::Tensor());
+    pb.push_back(has_bias ? bias.back().data_ptr<float>() : nullptr);
+  }
+  if (layer_norm && !pb.back()) throw InputError("mlp_inference: layer norm needs the last bias");
+  auto y = torch::empty({rows, width}, x.front().options().requires_grad(false));
+  const size_t last = layers.size() - 1;
+  // Each worker takes a block of rows through every layer (no join between layers); hidden
+  // activations live in two per-worker buffers.
+  parallel_blocks(rows, kMinForwardRows, [&](int64_t r0, int64_t r1) {
+    const int64_t n = r1 - r0;
+    torch::Tensor h[2];
+    if (last > 0) {
+      h[0] = torch::empty({n, widest}, y.options());
+      if (last > 1) h[1] = torch::empty({n, widest}, y.options());
+    }
+    torch::Tensor in_block;
+    for (size_t l = 0; l <= last; ++l) {
+      const int64_t out = wt[l].size(1);
+      torch::Tensor o =
+          l == last ? y.slice(0, r0, r1) : h[l % 2].view(-1).narrow(0, 0, n * out).view({n, out});
+      if (l == 0) {
+        // The first layer over the column parts: Σ_p x_p · (its rows of wᵀ), no concatenation;
+        // a sparse part adds to its rows only.
+        int64_t col = 0;
+        for (size_t p = 0; p < x.size(); ++p) {
+          const int64_t k = x[p].size(1);
+          const auto wp = wt[0].narrow(0, col, k);
+          col += k;
+          if (!at_rows[p].defined()) {
+            const auto xp = x[p].slice(0, r0, r1);
+            if (p == 0)
+              at::mm_out(o, xp, wp);
+            else
+              o.addmm_(xp, wp);
+            continue;
+          }
+          const int64_t* pr = at_rows[p].data_ptr<int64_t>();
+          const int64_t count = at_rows[p].numel();
+          const int64_t q0 = std::lower_bound(pr, pr + count, r0) - pr;
+          const int64_t q1 = std::lower_bound(pr, pr + count, r1) - pr;
+          if (q1 == q0) continue;
+          const auto add = x[p].slice(0, q0, q1).mm(wp);
+          const float* pa = add.data_ptr<float>();
+          float* po = o.data_ptr<float>();
+          for (int64_t q = q0; q < q1; ++q) {
+            float* row = po + (pr[q] - r0) * out;
+            const float* src = pa + (q - q0) * out;
+            for (int64_t c = 0; c < out; ++c) row[c] += src[c];
+          }
+        }
+      } else {
+        at::mm_out(o, in_block, wt[l]);
+      }
+      float* po = o.data_ptr<float>();
+      if (l == last && layer_norm)
+        bias_layer_norm_rows(po, pb[l], 0, n, out, kLayerNormEps);
+      else if (pb[l] || layers[l].relu)
+        bias_relu_rows(po, pb[l], layers[l].relu, 0, n, out);
+      in_block = o;
+    }
+  });
+  return y;
 }
 
 int configure_threads(int threads) {

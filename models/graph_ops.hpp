@@ -30,6 +30,23 @@ torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const 
 // GEMMs over LibTorch's OpenMP pool itself. Returns the LibTorch thread count.
 int configure_threads(int threads);
 
+// One layer of mlp_inference: x · weightᵀ + bias (bias may be undefined), then ReLU if `relu`.
+struct DenseLayer {
+  torch::Tensor weight, bias;
+  bool relu = false;
+};
+
+// Inference (no gradients): dense layers in sequence, optionally a LayerNorm (no affine, eps
+// 1e-5) on the last output, like linear() layer by layer but with each worker taking its block of
+// rows through every layer. The input is the column concatenation of `parts` (all with the same
+// rows), never built: the first layer sums each part's GEMM with its columns of the weight.
+// part_rows (empty: all parts dense) marks sparse parts: part_rows[p] int64 [R] lists the distinct
+// ascending rows that parts[p] [R, k] gives; its other rows are zero (e.g. the sum of contact
+// messages, which reaches few nodes). The first part is dense.
+torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
+                            const std::vector<DenseLayer>& layers, bool layer_norm,
+                            const std::vector<torch::Tensor>& part_rows = {});
+
 // out[j] = Σ_{e: receivers[e] = j} layer_norm(x[e] + bias) (no affine, eps 1e-5), without storing
 // the normalised edge tensor. x [E, C], bias [C] -> [N, C].
 torch::Tensor layer_norm_segment_sum(const torch::Tensor& x, const torch::Tensor& bias,
@@ -41,6 +58,9 @@ torch::Tensor layer_norm_segment_sum(const torch::Tensor& x, const torch::Tensor
 //   out[j] = Σ_{e: receivers[e] = j} layer_norm(relu(h1_e · w2ᵀ + b2) · w3ᵀ + b3),
 //   h1_e = relu(features[e] · w1ᵀ + b1 + a[senders[e]] + b[receivers[e]]).
 // The same math as edge_first_layer → linear(relu) → linear → layer_norm_segment_sum.
+// With b undefined, a [E, C] holds each edge's endpoint term (a[senders[e]] + b[receivers[e]]
+// above): for edge sets much smaller than the node count (contacts), projecting the endpoints of
+// each edge costs less than projecting every node.
 torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features, const torch::Tensor& w1,
                                    const torch::Tensor& b1, const torch::Tensor& a,
                                    const torch::Tensor& b, const torch::Tensor& w2,

@@ -20,6 +20,11 @@ class Mlp : public torch::nn::Module {
   Mlp(int64_t in_size, int64_t hidden, int64_t out_size, bool layer_norm);
   // [R, in] -> [R, out], bias and ReLU fused (models/graph_ops.hpp).
   torch::Tensor forward(const torch::Tensor& x);
+  // forward on the column concatenation of `parts`; without gradients it is never built and each
+  // worker takes its rows through all three layers (models/graph_ops.hpp, mlp_inference, which
+  // also says what `part_rows` marks; inference only).
+  torch::Tensor forward_parts(const std::vector<torch::Tensor>& parts,
+                              const std::vector<torch::Tensor>& part_rows = {});
   // The same with plain LibTorch modules and ops, as the reference implementation evaluates it.
   torch::Tensor forward_reference(const torch::Tensor& x);
   // Layer 2 with its ReLU, from the first layer's ReLU output: [R, hidden] -> [R, hidden].
@@ -51,7 +56,8 @@ struct EdgeStretch {
 
 // Edge features [Δp, |Δp|] for each position field in `fields` (Δp = p[sender] - p[receiver]),
 // concatenated, then the stretch channel when `stretch` is enabled:
-// positions[f] [N, d_f] -> [E, Σ_f (d_f + 1) (+ 1)].
+// positions[f] [N, d_f] -> [E, Σ_f (d_f + 1) (+ 1)], float32 or float64 like the positions; one
+// pass over the edges, no gradient taken through the positions.
 torch::Tensor edge_features(const std::vector<torch::Tensor>& positions,
                             const std::vector<int64_t>& fields, const EdgeIndex& edges,
                             const EdgeStretch& stretch = {});
@@ -99,6 +105,14 @@ class Normalizer : public torch::nn::Module {
   torch::Tensor std_epsilon_;        // [1] float64
   torch::Tensor sum_;                // [C] float64
   torch::Tensor sum_squares_;        // [C] float64
+  // Without gradients (rollouts, validation): the float32 mean and std, kept until a statistic
+  // buffer changes (accumulation, checkpoint load, allreduce bump their version counters).
+  struct FloatStats {
+    torch::Tensor mean, std;
+    uint32_t count_version = 0, sum_version = 0, squares_version = 0;
+  };
+  mutable FloatStats cached_;
+  const FloatStats& float_stats() const;
 };
 
 }  // namespace bsms

@@ -228,7 +228,7 @@ torch::Tensor EdgeLatentBlock::forward(const torch::Tensor& v, std::vector<torch
     latents[s] = latents[s] + update;
   }
   auto update = mode == EdgeMlpMode::kConcat ? node_mlp_->forward_reference(torch::cat(node_in, 1))
-                                             : node_mlp_->forward(torch::cat(node_in, 1));
+                                             : node_mlp_->forward_parts(node_in);
   return v + update;
 }
 

@@ -6,7 +6,8 @@
 
 namespace bsms {
 
-EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* exclude) {
+EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* exclude,
+                      const PairFilter& keep) {
   const int64_t n = points.rows();
   const int dim = static_cast<int>(points.cols());
   if (!(radius > 0) || !std::isfinite(radius))
@@ -16,7 +17,8 @@ EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* 
   EdgeList out;
   if (n == 0) return out;
   // Cells of side `radius`: neighbours lie in the 3^dim surrounding cells. Nodes are sorted by a
-  // cell key so each cell is a contiguous run, found by binary search.
+  // cell key so each cell is a contiguous run, found in a table of run starts when the grid has
+  // few cells for its nodes, else by binary search.
   Eigen::RowVectorXd lo = points.colwise().minCoeff();
   std::vector<int64_t> cell(n * 3, 0);
   int64_t extent[3] = {1, 1, 1};
@@ -33,9 +35,28 @@ EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* 
     keyed[i] = {key_of(&cell[3 * i]), i};
   }
   std::sort(keyed.begin(), keyed.end());
+  // extent[c] <= range / radius + 1, so the product stays finite; compare in double first.
+  const double cells_d = static_cast<double>(extent[0]) * static_cast<double>(extent[1]) *
+                         static_cast<double>(extent[2]);
+  const bool table = cells_d <= 8.0 * static_cast<double>(n) + 4096.0;
+  std::vector<int64_t> start;  // keyed[start[k] .. start[k + 1]) have key k
+  if (table) {
+    const int64_t cells = extent[0] * extent[1] * extent[2];
+    start.assign(cells + 1, 0);
+    for (const auto& kv : keyed) ++start[kv.first + 1];
+    for (int64_t k = 0; k < cells; ++k) start[k + 1] += start[k];
+  }
+  auto run_of = [&](int64_t key) -> std::pair<int64_t, int64_t> {
+    if (table) return {start[key], start[key + 1]};
+    auto first = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(key, int64_t{-1})) -
+                 keyed.begin();
+    int64_t last = first;
+    while (last < n && keyed[last].first == key) ++last;
+    return {first, last};
+  };
   const double r2 = radius * radius;
   std::vector<std::vector<int64_t>> found(n);
-#pragma omp parallel for schedule(dynamic, 256)
+#pragma omp parallel for schedule(dynamic, 64)
   for (int64_t i = 0; i < n; ++i) {
     const int64_t* ci = &cell[3 * i];
     auto& mine = found[i];
@@ -48,10 +69,9 @@ EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* 
     for (q[2] = lo3[2]; q[2] <= hi3[2]; ++q[2])
       for (q[1] = lo3[1]; q[1] <= hi3[1]; ++q[1])
         for (q[0] = lo3[0]; q[0] <= hi3[0]; ++q[0]) {
-          const int64_t key = key_of(q);
-          auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(key, int64_t{-1}));
-          for (; it != keyed.end() && it->first == key; ++it) {
-            const int64_t j = it->second;
+          const auto [first, last] = run_of(key_of(q));
+          for (int64_t m = first; m < last; ++m) {
+            const int64_t j = keyed[m].second;
             if (j == i) continue;
             double d2 = 0;
             for (int c = 0; c < dim; ++c) {
@@ -59,6 +79,7 @@ EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* 
               d2 += d * d;
             }
             if (d2 >= r2) continue;
+            if (keep && !keep(i, j)) continue;
             if (exclude && std::binary_search(exclude->begin(i), exclude->end(i), j)) continue;
             mine.push_back(j);
           }

@@ -33,5 +33,40 @@ TEST(RadiusSearch, MatchesBruteForceInOneTwoAndThreeDimensions) {
   }
 }
 
+// A pair filter drops exactly the pairs it rejects, and point sets whose grid would have far
+// more cells than points (searched by binary search instead of a cell table) give the same pairs.
+TEST(RadiusSearch, FilterAndSparseGridsMatchBruteForce) {
+  std::mt19937 rng(11);
+  for (int dim = 1; dim <= 3; ++dim) {
+    for (int trial = 0; trial < 6; ++trial) {
+      const int64_t n = 30 + 41 * trial;
+      // Clusters far apart: trial 0-2 on a dense grid, 3-5 spread so the grid has > 8 n + 4096
+      // cells.
+      const double spread = trial < 3 ? 1.0 : 5000.0;
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      std::uniform_int_distribution<int> cluster(0, 3);
+      RowMatrixXd x(n, dim);
+      for (int64_t i = 0; i < n; ++i) {
+        const double offset = spread * cluster(rng);
+        for (int c = 0; c < dim; ++c) x(i, c) = offset + u(rng);
+      }
+      const double r = 0.3;
+      const PairFilter keep = [](int64_t i, int64_t j) { return (i + j) % 3 != 0; };
+      for (bool filtered : {false, true}) {
+        const EdgeList got = radius_pairs(x, r, nullptr, filtered ? keep : PairFilter{});
+        std::vector<int64_t> expected;
+        for (int64_t i = 0; i < n; ++i)
+          for (int64_t j = 0; j < n; ++j) {
+            if (i == j || (filtered && !keep(i, j))) continue;
+            if ((x.row(i) - x.row(j)).squaredNorm() < r * r)
+              expected.insert(expected.end(), {i, j});
+          }
+        ASSERT_EQ(got.data, expected)
+            << "dim " << dim << " trial " << trial << " filtered " << filtered;
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace bsms

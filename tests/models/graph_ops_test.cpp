@@ -116,6 +116,67 @@ TEST(GraphOps, LinearMatchesAddmm) {
   }
 }
 
+// Inference MLPs: each worker takes its rows through every layer, the first layer summed over
+// column parts; the same values as linear() layer by layer on the concatenated input.
+TEST(GraphOps, MlpInferenceMatchesLayerByLayer) {
+  torch::manual_seed(8);
+  // Widths 12 -> 20 -> 9 -> 16 (hidden widths differ: the buffers are reused at other shapes).
+  const std::vector<int64_t> widths = {12, 20, 9, 16};
+  std::vector<DenseLayer> layers;
+  for (size_t l = 0; l + 1 < widths.size(); ++l)
+    layers.push_back({torch::randn({widths[l + 1], widths[l]}) / 3, torch::randn({widths[l + 1]}),
+                      l + 2 < widths.size()});
+  for (int64_t rows : {1, 31, 40, 300, 1000}) {
+    SCOPED_TRACE("rows " + std::to_string(rows));
+    const auto x = torch::randn({rows, 12});
+    for (bool norm : {false, true}) {
+      auto reference = x;
+      for (const auto& l : layers) {
+        reference = torch::addmm(l.bias, reference, l.weight.t());
+        if (l.relu) reference = torch::relu(reference);
+      }
+      if (norm) reference = torch::layer_norm(reference, {16});
+      torch::NoGradGuard no_grad;
+      expect_close(mlp_inference({x}, layers, norm), reference);
+      // The same input in three column parts, one of them a strided view.
+      const auto wide = torch::randn({rows, 20});
+      wide.narrow(1, 3, 5).copy_(x.narrow(1, 0, 5));
+      expect_close(
+          mlp_inference({wide.narrow(1, 3, 5), x.narrow(1, 5, 4), x.narrow(1, 9, 3)}, layers, norm),
+          reference);
+    }
+  }
+  // A sparse part (rows listed, the others zero) gives what its dense, zero-filled form gives.
+  for (int64_t rows : {7, 64, 500}) {
+    const auto v = torch::randn({rows, 9});
+    auto dense = torch::zeros({rows, 3});
+    const auto at = torch::arange(0, rows, 3, torch::kInt64);  // every third row
+    const auto values = torch::randn({at.size(0), 3});
+    dense.index_copy_(0, at, values);
+    torch::NoGradGuard no_grad;
+    for (bool norm : {false, true}) {
+      expect_close(mlp_inference({v, values}, layers, norm, {torch::Tensor(), at}),
+                   mlp_inference({v, dense}, layers, norm));
+      expect_close(mlp_inference({v, values.narrow(0, 0, 0)}, layers, norm,
+                                 {torch::Tensor(), at.narrow(0, 0, 0)}),
+                   mlp_inference({v, torch::zeros({rows, 3})}, layers, norm));
+    }
+    EXPECT_THROW(mlp_inference({v, values}, layers, false, {torch::Tensor(), at.flip(0)}),
+                 InputError);  // not ascending
+    EXPECT_THROW(mlp_inference({v, values}, layers, false, {at, torch::Tensor()}), InputError);
+  }
+  // linear() without gradients takes the same path: one layer, with and without bias.
+  const auto x = torch::randn({100, 12});
+  const auto& first = layers[0];
+  torch::NoGradGuard no_grad;
+  expect_close(linear(x, first.weight, first.bias, true),
+               torch::relu(torch::addmm(first.bias, x, first.weight.t())));
+  expect_close(linear(x, first.weight, {}, false), x.mm(first.weight.t()));
+  EXPECT_THROW(mlp_inference({torch::randn({5, 11})}, layers, false), InputError);
+  EXPECT_THROW(mlp_inference({x, torch::randn({99, 1})}, layers, false), InputError);
+  EXPECT_THROW(mlp_inference({x}, {{first.weight, {}, false}}, true), InputError);
+}
+
 TEST(GraphOps, LayerNormSegmentSumMatchesLayerNormThenIndexAdd) {
   torch::manual_seed(3);
   const int64_t n = 17, e = 120, c = 33;
@@ -156,6 +217,37 @@ TEST(GraphOps, FusedInferenceEdgeMlpMatchesTheComposedKernels) {
                                     a, a, torch::randn({c, c}), torch::randn({c}),
                                     torch::randn({c, c}), torch::randn({c}), index),
                InputError);
+}
+
+// Few edges: the endpoint terms projected per edge (a [E, C], no b) give the per-node result.
+TEST(GraphOps, FusedEdgeMlpTakesEndpointTermsPerEdge) {
+  torch::manual_seed(9);
+  const int64_t n = 50, c = 16, k = 3;
+  for (int64_t e : {0, 1, 7, 70, 600}) {
+    SCOPED_TRACE("edges " + std::to_string(e));
+    auto index = EdgeIndex::from_pairs(random_pairs(n, e), n);
+    auto f = torch::randn({e, k});
+    auto w1 = torch::randn({c, k}), b1 = torch::randn({c});
+    auto a = torch::randn({n, c}), b = torch::randn({n, c});
+    auto w2 = torch::randn({c, c}) / 4, b2 = torch::randn({c});
+    auto w3 = torch::randn({c, c}) / 4, b3 = torch::randn({c});
+    torch::NoGradGuard no_grad;
+    const auto per_node = edge_mlp_segment_sum(f, w1, b1, a, b, w2, b2, w3, b3, index);
+    const auto ends = a.index_select(0, index.senders) + b.index_select(0, index.receivers);
+    expect_close(edge_mlp_segment_sum(f, w1, b1, ends, {}, w2, b2, w3, b3, index), per_node);
+    // Per-edge terms have one row per edge; the edge-latent kernel needs per-node ones.
+    EXPECT_THROW(
+        edge_mlp_segment_sum(f, w1, b1, torch::randn({e + 1, c}), {}, w2, b2, w3, b3, index),
+        InputError);
+  }
+  auto index = EdgeIndex::from_pairs(random_pairs(n, 20), n);
+  torch::NoGradGuard no_grad;
+  torch::Tensor next;
+  EXPECT_THROW(
+      edge_latent_update(torch::randn({20, c}), torch::randn({c, c}), torch::randn({c}),
+                         torch::randn({20, c}), {}, torch::randn({c, c}), torch::randn({c}),
+                         torch::randn({c, c}), torch::randn({c}), index, next),
+      InputError);
 }
 
 TEST(GraphOps, FusedEdgeLatentUpdateMatchesTheComposedKernels) {

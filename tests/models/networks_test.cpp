@@ -154,6 +154,60 @@ TEST(Networks, ProjectionEqualsConcatFormulation) {
   }
 }
 
+// edge_features in one pass equals its tensor formula: [Δp, |Δp|] per field, then the stretch
+// (0 on edges whose reference nodes coincide), float32 and float64.
+TEST(EdgeFeatures, OnePassMatchesTheTensorFormula) {
+  torch::manual_seed(21);
+  const int64_t n = 40;
+  auto pairs = torch::randint(0, n, {3000, 2}, torch::kInt64);  // with self loops: |Δp| = 0
+  const EdgeIndex edges = EdgeIndex::from_pairs(pairs, n);
+  for (auto dtype : {torch::kFloat32, torch::kFloat64}) {
+    auto X = torch::randn({n, 2}, dtype);
+    X[1] = X[0];  // a degenerate edge 0 - 1 reads as unstretched
+    const auto x = X * 1.1 + 0.05 * torch::randn({n, 2}, dtype);
+    const auto w = torch::randn({n, 3}, dtype);
+    const EdgeStretch stretch{0, 1, 4.0};
+    const std::vector<torch::Tensor> positions = {X, x, w};
+    auto delta = [&](const torch::Tensor& p) {
+      return p.index_select(0, edges.senders) - p.index_select(0, edges.receivers);
+    };
+    auto expected = [&](const std::vector<int64_t>& fields, bool with_stretch) {
+      std::vector<torch::Tensor> parts;
+      for (int64_t f : fields) {
+        const auto d = delta(positions[f]);
+        parts.push_back(d);
+        parts.push_back(d.norm(2, {1}, true));
+      }
+      if (with_stretch) {
+        const auto rest = delta(X).norm(2, {1}, true), now = delta(x).norm(2, {1}, true);
+        parts.push_back(
+            torch::where(rest > 0, now / rest.clamp_min(1e-30) - 1, torch::zeros_like(rest)) * 4.0);
+      }
+      return torch::cat(parts, 1);
+    };
+    const double tol = dtype == torch::kFloat32 ? 1e-5 : 1e-12;
+    for (const auto& fields : std::vector<std::vector<int64_t>>{{0, 1}, {1}, {2, 0}, {}}) {
+      for (bool with_stretch : {true, false}) {
+        if (fields.empty() && !with_stretch) continue;
+        const auto got =
+            edge_features(positions, fields, edges, with_stretch ? stretch : EdgeStretch{});
+        const auto want = expected(fields, with_stretch);
+        ASSERT_EQ(got.sizes(), want.sizes());
+        EXPECT_EQ(got.scalar_type(), dtype);
+        EXPECT_LT(max_rel_diff(got, want), tol);
+      }
+    }
+  }
+  EXPECT_THROW(edge_features({torch::randn({n, 2})}, {1}, edges), InputError);
+  EXPECT_THROW(
+      edge_features({torch::randn({n, 2}), torch::randn({n, 2}, torch::kFloat64)}, {0, 1}, edges),
+      InputError);
+  EXPECT_THROW(edge_features({torch::randn({n - 1, 2})}, {0}, edges), InputError);
+  EXPECT_THROW(edge_features({torch::randn({n, 2}), torch::randn({n, 3})}, {}, edges,
+                             EdgeStretch{0, 1, 1.0}),
+               InputError);
+}
+
 TEST(Networks, InferenceModeAndThreadCountGiveTheSameOutputs) {
   torch::manual_seed(17);
   auto p = make_problem(30, 20, 4, true);  // enough edges to split kernels over threads

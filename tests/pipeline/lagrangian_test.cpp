@@ -302,6 +302,48 @@ TEST(MomentumProjection, RemovesLinearAndAngularOnFreeGroupsOnly) {
   EXPECT_TRUE(torch::equal(project_momentum(none, a), a));
 }
 
+// Without gradients (rollouts, validation) the projection runs as loops over the nodes with
+// double sums: the values of the differentiable tensor version the training loss uses, evaluated
+// in float64 (float32 inputs: up to their rounding), with partial conservation, nodes outside every
+// group and degenerate 3-D groups (two nodes, nodes on a line).
+TEST(MomentumProjection, WithoutGradientsMatchesTheDifferentiableVersion) {
+  for (int dim : {2, 3}) {
+    for (uint64_t seed = 0; seed < 8; ++seed) {
+      SCOPED_TRACE("dim " + std::to_string(dim) + " seed " + std::to_string(seed));
+      Batch b = random_groups(dim, 4, 1 + static_cast<int>(seed % 6), 3, 300 + seed);
+      if (seed % 2 == 1) {
+        auto kept = torch::ones({4, dim + 1}, torch::kFloat32);
+        kept[1][dim] = 0;
+        kept[2][0] = 0;
+        kept[3].zero_();
+        b.conserved = kept;
+      }
+      if (dim == 3 && seed == 4)  // group 0's nodes on a line: a singular inertia tensor
+        b.cur.slice(0, 0, 5).copy_(
+            torch::linspace(0, 1, 5, torch::kFloat64).unsqueeze(1).expand({5, 3}));
+      Batch bodies = b;
+      bodies.body = b.group;
+      bodies.num_bodies = b.num_groups;
+      const auto a = torch::randn({b.cur.size(0), dim}, torch::kFloat64);
+      const auto projected = project_momentum(b, a);
+      const auto rigid = rigid_part(bodies, a);
+      for (auto dtype : {torch::kFloat64, torch::kFloat32}) {
+        const auto input = a.to(dtype);
+        torch::NoGradGuard no_grad;
+        const auto without = project_momentum(b, input);
+        EXPECT_EQ(without.scalar_type(), dtype);
+        const double tol = dtype == torch::kFloat64 ? 1e-12 : 2e-6;
+        const double scale = 1.0 + a.abs().max().item<double>();
+        EXPECT_LT((without.to(torch::kFloat64) - projected).abs().max().item<double>(),
+                  tol * scale);
+        EXPECT_LT(
+            (rigid_part(bodies, input).to(torch::kFloat64) - rigid).abs().max().item<double>(),
+            tol * scale);
+      }
+    }
+  }
+}
+
 // The loss's rigid part: per body (nodes weighted equally), the orthogonal projection onto
 // uniform motions plus rigid spins about the body's centroid.
 TEST(RigidPart, IsTheOrthogonalProjectionOntoEachBodysRigidMotions) {
