@@ -350,23 +350,20 @@ struct EdgeFirstLayer : torch::autograd::Function<EdgeFirstLayer> {
     if (ctx->needs_input_grad(1)) grad_features = masked.mm(weight);
     if (ctx->needs_input_grad(2)) {
       // gradᵀ · features [C, K] with K the few edge features: BLAS's small-matrix path ran this
-      // long, thin product at ~15 GFLOP/s on one thread; here as outer products over fixed blocks
-      // of edges (the sum does not depend on the thread count).
-      const int64_t rows = masked.size(0), channels = masked.size(1), k = features.size(1);
-      const int64_t block = std::max<int64_t>(512, (rows + 15) / 16);
-      const int64_t blocks = std::max<int64_t>(1, (rows + block - 1) / block);
-      auto partial = torch::zeros({blocks, k, channels}, masked.options());
+      // long, thin product at ~15 GFLOP/s on one thread; here as sums of per-edge outer products
+      // [K, C] over fixed blocks of edges (the sum does not depend on the thread count).
+      const int64_t channels = masked.size(1), k = features.size(1);
       const float* pg = masked.data_ptr<float>();
       const float* pf = features.data_ptr<float>();
-      float* pp = partial.data_ptr<float>();
-      at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
-        for (int64_t blk = b0; blk < b1; ++blk) {
-          for (int64_t e = blk * block; e < std::min(rows, (blk + 1) * block); ++e)
-            outer_accumulate_row(pg + e * channels, pf + e * k, k, channels,
-                                 pp + blk * k * channels);
-        }
-      });
-      grad_weight = partial.sum(0).t().contiguous();
+      grad_weight = blocked_column_sum(masked.size(0), k * channels,
+                                       [&](int64_t begin, int64_t end, float* sum) {
+                                         for (int64_t e = begin; e < end; ++e)
+                                           outer_accumulate_row(pg + e * channels, pf + e * k, k,
+                                                                channels, sum);
+                                       })
+                        .view({k, channels})
+                        .t()
+                        .contiguous();
     }
     if (ctx->needs_input_grad(4)) {
       ga = segment_sum_tensor(masked, ctx->saved_data["sender_offsets"].toTensor(),
