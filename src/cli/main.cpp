@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
       "bsms: Bi-Stride Multi-Scale GNNs for mesh-based simulation (UMLS-MPM data, LibTorch)"};
   app.require_subcommand(1);
   const std::string blas = bsms::blas_config();
-  app.set_version_flag("--version", "bsms 0.1" + (blas.empty() ? "" : "\nBLAS: " + blas));
+  app.set_version_flag("--version", "bsms 0.1" + (blas.empty() ? "" : "\nBLAS: " + blas) +
+                                        "\nmalloc: " + bsms::allocator_name());
   app.footer(
       "Exit codes: 0 success, 1 internal error (a bug to report), 2 bad input, 3 numerical "
       "failure, 4 I/O failure, 5 distributed training lost a rank.");

@@ -65,6 +65,20 @@ std::string blas_config() {
   return openblas_string("openblas_get_config");
 }
 
+std::string allocator_name() {
+  // gperftools' malloc is an alias of its tc_malloc: the same address when it replaced libc's.
+  void* tc_malloc = dlsym(RTLD_DEFAULT, "tc_malloc");
+  if (tc_malloc == nullptr || dlsym(RTLD_DEFAULT, "malloc") != tc_malloc) return "system malloc";
+  // tc_version(major, minor, patch string) returns "gperftools X.Y".
+  using Version = const char* (*)(int*, int*, const char**);
+  auto* version = reinterpret_cast<Version>(dlsym(RTLD_DEFAULT, "tc_version"));
+  if (version == nullptr) return "gperftools tcmalloc";
+  int major = 0, minor = 0;
+  const char* patch = nullptr;
+  const char* name = version(&major, &minor, &patch);
+  return std::string(name != nullptr ? name : "gperftools") + " tcmalloc";
+}
+
 std::string blas_core_override(const std::string& detected_core, const CpuFeatures& cpu) {
   if (detected_core.empty()) return "";  // not OpenBLAS: nothing to steer
   std::string core = detected_core;

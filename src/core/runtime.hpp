@@ -37,6 +37,10 @@ CpuFeatures cpu_features();
 std::string blas_core();
 std::string blas_config();
 
+// The malloc this process runs: "gperftools 2.10 tcmalloc" when gperftools' tcmalloc replaced
+// libc's (the LibTorch executables link it, CMake option BSMS_TCMALLOC), else "system malloc".
+std::string allocator_name();
+
 // OpenBLAS built with DYNAMIC_ARCH (Debian's) picks its kernels from the CPU's family and model
 // when it loads. A model it does not know falls back to Prescott, SSE3 kernels at a fraction of
 // the speed: Debian 12's OpenBLAS 0.3.21 on this machine kind's Intel Xeon (family 6, model 207)

@@ -28,6 +28,8 @@ struct TrainStats {
   // The BLAS build and kernels the session ran with (OpenBLAS's openblas_get_config, e.g.
   // "OpenBLAS 0.3.21 ... DYNAMIC_ARCH ... SkylakeX ..."); empty when not OpenBLAS or not recorded.
   std::string blas;
+  // The malloc the session ran with (core/runtime.hpp allocator_name); empty when not recorded.
+  std::string allocator;
   // Data-parallel sessions: rank 0's time in the gradient all-reduce per step (waiting for slower
   // ranks included) and the all-reduce calls per step; none for a single process.
   std::optional<double> allreduce_ms_per_step, allreduce_calls_per_step;

@@ -448,6 +448,7 @@ TrainResult train(const TrainRequest& request) {
   stats.num_parameters = simulator->num_parameters();
   stats.valid_split = has_valid ? "valid" : "train";
   stats.blas = blas_config();
+  stats.allocator = allocator_name();
   if (comm && session_steps > 0) {
     stats.allreduce_ms_per_step = (comm->collective_ms - collective_ms_before) / session_steps;
     stats.allreduce_calls_per_step =
