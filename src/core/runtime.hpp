@@ -21,7 +21,8 @@ bool single_threaded_blas();
 // Keeps large freed blocks in the process instead of returning them to the system (glibc:
 // mmap threshold 256 MiB, trim threshold 1 GiB). Training allocates and frees the same large
 // tensors every step; without this, each step maps and unmaps them again (measured: 20% of the
-// CPU time in the kernel, training step 326 -> 275 ms on the 2.6K-node benchmark mesh).
+// CPU time in the kernel, training step 326 -> 275 ms on the 2.6K-node benchmark mesh). Under
+// tcmalloc (allocator_name), which keeps freed spans itself, mallopt does nothing.
 void tune_allocator();
 
 // The CPU features that decide which OpenBLAS kernels can run (GCC's __builtin_cpu_supports,

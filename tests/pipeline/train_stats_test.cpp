@@ -29,6 +29,8 @@ TrainStats distributed_stats() {
   s.valid_split = "train";
   s.allreduce_ms_per_step = 1.5;
   s.allreduce_calls_per_step = 1.0;
+  s.blas = "OpenBLAS 0.3.21 NO_LAPACKE DYNAMIC_ARCH NO_AFFINITY SkylakeX MAX_THREADS=64";
+  s.allocator = "gperftools 2.10 tcmalloc";
   return s;
 }
 
@@ -53,6 +55,8 @@ TEST(TrainStatsFile, RoundTripsThroughTheFile) {
   EXPECT_DOUBLE_EQ(back.final_loss, 0.31);
   EXPECT_TRUE(std::isnan(back.final_valid_loss));
   EXPECT_EQ(back.valid_split, "train");
+  EXPECT_EQ(back.blas, s.blas);
+  EXPECT_EQ(back.allocator, "gperftools 2.10 tcmalloc");
   ASSERT_TRUE(back.allreduce_ms_per_step.has_value());
   EXPECT_DOUBLE_EQ(*back.allreduce_ms_per_step, 1.5);
   EXPECT_EQ(to_json(back).dump(), written.dump());
@@ -64,6 +68,15 @@ TEST(TrainStatsFile, RoundTripsThroughTheFile) {
   const Json j = to_json(alone);
   EXPECT_FALSE(j.contains("allreduce_ms_per_step"));
   EXPECT_FALSE(train_stats_from_json(j, "f").allreduce_ms_per_step.has_value());
+
+  // Files of sessions that did not record their BLAS or malloc (older runs) read back empty.
+  Json older = to_json(s);
+  older.erase("blas");
+  older.erase("allocator");
+  const TrainStats old_back = train_stats_from_json(older, "f");
+  EXPECT_TRUE(old_back.blas.empty());
+  EXPECT_TRUE(old_back.allocator.empty());
+  EXPECT_FALSE(to_json(old_back).contains("allocator"));
 }
 
 TEST(TrainStatsFile, BadFilesNameTheKey) {
