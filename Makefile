@@ -11,7 +11,7 @@ SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # Debian 12 packages the project needs (DESIGN.md, Dependencies).
 DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh-dev gmsh \
         nlohmann-json3-dev libprotobuf-dev libgloo-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
-        libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq
+        libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq python3-h5py
 
 .PHONY: deps build test test-no-torch demo train-long hardcases bench fuzz sanitize sanitize-thread format clean
 

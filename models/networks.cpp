@@ -107,21 +107,35 @@ BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
     throw InputError("BSMS-GNN: mp_per_level is " + std::to_string(options_.mp_per_level) +
                      ", expected >= 1");
   }
+  const int levels = options_.num_levels;
+  std::vector<int> counts = options_.level_blocks;
+  if (counts.empty()) counts.assign(static_cast<size_t>(levels), options_.mp_per_level);
+  if (static_cast<int>(counts.size()) != levels) {
+    throw InputError("BSMS-GNN: mp_per_level lists " + std::to_string(counts.size()) +
+                     " block counts, the graph has " + std::to_string(levels) +
+                     " levels (one count per level expected)");
+  }
+  for (int c : counts) {
+    if (c < 1) {
+      throw InputError("BSMS-GNN: a level's block count is " + std::to_string(c) +
+                       ", expected >= 1");
+    }
+  }
   // Block i > 0 of a level is named <name>_<i>: models with one block per level keep the names
   // (and checkpoints) they had before the count was an option.
-  auto blocks = [&](const std::string& name) {
+  auto blocks = [&](const std::string& name, int count) {
     std::vector<std::shared_ptr<MessagePassing>> out;
-    for (int i = 0; i < options_.mp_per_level; ++i) {
+    for (int i = 0; i < count; ++i) {
       out.push_back(register_module(i == 0 ? name : name + "_" + std::to_string(i),
                                     std::make_shared<MessagePassing>(latent, feature_sizes)));
     }
     return out;
   };
-  for (int k = 0; k + 1 < options_.num_levels; ++k) {
-    down_.push_back(blocks("down_" + std::to_string(k)));
-    up_.push_back(blocks("up_" + std::to_string(k)));
+  for (int k = 0; k + 1 < levels; ++k) {
+    down_.push_back(blocks("down_" + std::to_string(k), counts[k]));
+    up_.push_back(blocks("up_" + std::to_string(k), counts[k]));
   }
-  bottom_ = blocks("bottom");
+  bottom_ = blocks("bottom", counts.back());
   decoder_ = register_module("decoder",
                              std::make_shared<Mlp>(latent, latent, options_.output_size, false));
 }

@@ -29,6 +29,9 @@ struct GraphModelOptions {
   // BSMS: message-passing blocks on each level on the way down, at the bottom and on each level
   // on the way up (the original implementation's MP times per level); >= 1.
   int mp_per_level = 1;
+  // BSMS: blocks per level, one entry per level (level k's blocks on the way down and up; the
+  // last entry: the bottom), overriding mp_per_level; empty = mp_per_level on every level.
+  std::vector<int> level_blocks;
 };
 
 // Common interface: node inputs (normalised) to node outputs (normalised) on a graph hierarchy.

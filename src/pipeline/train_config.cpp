@@ -47,9 +47,24 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
         m.opt<int>("message_passing_steps", c.model.message_passing_steps);
     require(c.model.message_passing_steps >= 1 && c.model.message_passing_steps <= 100,
             m.context("message_passing_steps"), "in 1..100");
-    c.model.mp_per_level = m.opt<int>("mp_per_level", c.model.mp_per_level);
-    require(c.model.mp_per_level >= 1 && c.model.mp_per_level <= 16, m.context("mp_per_level"),
-            "in 1..16");
+    if (m.has("mp_per_level") && m.raw("mp_per_level").is_array()) {
+      const Json& list = m.raw("mp_per_level");
+      bool ok = !list.empty() && list.size() <= 64;
+      for (const auto& v : list)
+        ok = ok && v.is_number_integer() && v.get<int64_t>() >= 1 && v.get<int64_t>() <= 16;
+      require(ok, m.context("mp_per_level"),
+              "an integer in 1..16 or a list of them, one per level from the mesh down");
+      for (const auto& v : list) c.model.level_blocks.push_back(v.get<int>());
+      if (c.model.levels > 0)
+        require(static_cast<int>(list.size()) == c.model.levels, m.context("mp_per_level"),
+                "one block count per level (" + std::to_string(c.model.levels) + " levels)");
+      c.model.mp_per_level =
+          *std::max_element(c.model.level_blocks.begin(), c.model.level_blocks.end());
+    } else {
+      c.model.mp_per_level = m.opt<int>("mp_per_level", c.model.mp_per_level);
+      require(c.model.mp_per_level >= 1 && c.model.mp_per_level <= 16, m.context("mp_per_level"),
+              "in 1..16");
+    }
     m.finish();
   }
   if (top.has("features")) {
@@ -161,7 +176,8 @@ Json to_json(const TrainConfig& c) {
            {"levels", levels},
            {"seeding", to_string(c.model.seeding)},
            {"message_passing_steps", c.model.message_passing_steps},
-           {"mp_per_level", c.model.mp_per_level}}},
+           {"mp_per_level", c.model.level_blocks.empty() ? Json(c.model.mp_per_level)
+                                                         : Json(c.model.level_blocks)}}},
          {"features",
           {{"contact_radius", contact},
            {"noise_std", c.features.noise_std},

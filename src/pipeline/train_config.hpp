@@ -17,6 +17,9 @@ struct ModelConfig {
   Seeding seeding = Seeding::kMinAve;  // seeding of the multilevel graphs
   int message_passing_steps = 15;      // MeshGraphNets
   int mp_per_level = 1;                // BSMS: message-passing blocks per level (down, bottom, up)
+  // BSMS: blocks per level, one per level from the mesh down (config: mp_per_level as a list);
+  // empty = mp_per_level on every level.
+  std::vector<int> level_blocks;
 };
 
 struct FeatureConfig {

@@ -192,6 +192,11 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
   } else {
     r.levels = config.model.levels > 0 ? config.model.levels
                                        : auto_levels(train_data.mesh(0), config.model.seeding);
+    const auto& blocks = config.model.level_blocks;
+    if (!blocks.empty() && static_cast<int>(blocks.size()) != r.levels)
+      throw InputError("model.mp_per_level: lists " + std::to_string(blocks.size()) +
+                       " block counts, expected one per level (" + std::to_string(r.levels) +
+                       " levels" + (config.model.levels > 0 ? "" : ", from levels \"auto\"") + ")");
   }
   if (r.eulerian) {
     EulerianSpec& e = r.eulerian_spec;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <set>
 #include <string>
 
 #include "core/error.hpp"
@@ -123,6 +124,50 @@ TEST(Networks, MoreBlocksPerLevelExtendTheOneBlockModel) {
   }
   EXPECT_GT(max_rel_diff(two.forward(p.nodes, p.positions, p.graph), a), 1e-4);
   options.mp_per_level = 0;
+  EXPECT_THROW(BsmsGnn{options}, InputError);
+}
+
+// Per-level block counts: level k gets its count of blocks down and up, the last level its count
+// at the bottom; a uniform list is the mp_per_level model itself (same parameter names and sizes,
+// same output); a list of the wrong length or with a zero is refused.
+TEST(Networks, PerLevelBlockCounts) {
+  torch::manual_seed(13);
+  const int levels = 3;
+  auto p = make_problem(7, 6, levels, true);
+  auto options = lagrangian_options(levels);
+  options.level_blocks = {3, 1, 2};
+  BsmsGnn model(options);
+  std::set<std::string> blocks;
+  for (const auto& param : model.named_parameters()) {
+    const auto& key = param.key();
+    if (key.rfind("down_", 0) == 0 || key.rfind("up_", 0) == 0 || key.rfind("bottom", 0) == 0)
+      blocks.insert(key.substr(0, key.find('.')));
+  }
+  EXPECT_EQ(blocks, (std::set<std::string>{"down_0", "down_0_1", "down_0_2", "up_0", "up_0_1",
+                                           "up_0_2", "down_1", "up_1", "bottom", "bottom_1"}));
+  EXPECT_EQ(model.forward(p.nodes, p.positions, p.graph).size(0), p.nodes.size(0));
+
+  auto uniform = lagrangian_options(levels);
+  uniform.level_blocks = {2, 2, 2};
+  auto two = lagrangian_options(levels);
+  two.mp_per_level = 2;
+  torch::manual_seed(5);
+  BsmsGnn a(uniform);
+  torch::manual_seed(5);
+  BsmsGnn b(two);
+  const auto pa = a.named_parameters(), pb = b.named_parameters();
+  ASSERT_EQ(pa.size(), pb.size());
+  for (const auto& param : pa) {
+    ASSERT_TRUE(pb.contains(param.key())) << param.key();
+    EXPECT_TRUE(torch::equal(param.value(), pb[param.key()])) << param.key();
+  }
+  torch::NoGradGuard no_grad;
+  EXPECT_TRUE(torch::equal(a.forward(p.nodes, p.positions, p.graph),
+                           b.forward(p.nodes, p.positions, p.graph)));
+
+  options.level_blocks = {2, 1};
+  EXPECT_THROW(BsmsGnn{options}, InputError);
+  options.level_blocks = {2, 0, 1};
   EXPECT_THROW(BsmsGnn{options}, InputError);
 }
 

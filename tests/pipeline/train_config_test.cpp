@@ -27,6 +27,21 @@ TEST(TrainConfig, EveryShippedConfigParsesAndRoundTrips) {
   EXPECT_GE(count, 2);
 }
 
+// A per-level list is kept as given (and written back as a list); an integer stays an integer.
+TEST(TrainConfig, PerLevelBlockCountsRoundTrip) {
+  const TrainConfig c = parse_train_config(
+      Json::parse(R"({"data": "d", "steps": 5, "model": {"mp_per_level": [3, 1, 2, 1]}})"), "t");
+  EXPECT_EQ(c.model.level_blocks, (std::vector<int>{3, 1, 2, 1}));
+  EXPECT_EQ(c.model.mp_per_level, 3);
+  EXPECT_EQ(to_json(c)["model"]["mp_per_level"], Json::parse("[3, 1, 2, 1]"));
+  const TrainConfig again = parse_train_config(to_json(c), "resolved");
+  EXPECT_EQ(again.model.level_blocks, c.model.level_blocks);
+  const TrainConfig plain = parse_train_config(
+      Json::parse(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 2}})"), "t");
+  EXPECT_TRUE(plain.model.level_blocks.empty());
+  EXPECT_EQ(to_json(plain)["model"]["mp_per_level"], Json(2));
+}
+
 std::string error_of(const std::string& text) {
   try {
     parse_train_config(Json::parse(text), "t.json");
@@ -89,6 +104,22 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"momentum": "free"}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4}})"), "");
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 3}})"), "");
+  // Per-level block counts: a list of integers in 1..16, one per level when levels are fixed.
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": [2, 1, 1]}})"), "");
+  EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 3,
+    "mp_per_level": [2, 1, 1]}})"),
+            "");
+  for (const char* bad : {R"([])", R"([2, 0])", R"([2, 17])", R"([2, 1.5])", R"(["2"])"}) {
+    EXPECT_NE(error_of(std::string(R"({"data": "d", "steps": 5, "model": {"mp_per_level": )") +
+                       bad + "}}")
+                  .find("model.mp_per_level"),
+              std::string::npos)
+        << bad;
+  }
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"levels": 4,
+    "mp_per_level": [2, 1, 1]}})")
+                .find("4 levels"),
+            std::string::npos);
   EXPECT_EQ(error_of(R"({"data": "d", "steps": 5, "features": {"noise_gamma": 0.1,
     "strain": "off"}, "optimizer": {"warmup_steps": 50}})"),
             "");
