@@ -42,8 +42,8 @@ LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& c
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
   o.mp_per_level = config.mp_per_level;
-  if (config.type == "bsms") o.level_blocks = config.level_blocks;
   if (config.type == "bsms") {
+    o.level_blocks = config.level_blocks;
     model_ = std::make_shared<BsmsGnn>(o);
   } else {
     model_ = std::make_shared<MeshGraphNets>(o);

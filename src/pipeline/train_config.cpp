@@ -50,11 +50,12 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     if (m.has("mp_per_level") && m.raw("mp_per_level").is_array()) {
       const Json& list = m.raw("mp_per_level");
       bool ok = !list.empty() && list.size() <= 64;
-      for (const auto& v : list)
+      for (const auto& v : list) {
         ok = ok && v.is_number_integer() && v.get<int64_t>() >= 1 && v.get<int64_t>() <= 16;
+        if (ok) c.model.level_blocks.push_back(v.get<int>());
+      }
       require(ok, m.context("mp_per_level"),
               "an integer in 1..16 or a list of them, one per level from the mesh down");
-      for (const auto& v : list) c.model.level_blocks.push_back(v.get<int>());
       if (c.model.levels > 0)
         require(static_cast<int>(list.size()) == c.model.levels, m.context("mp_per_level"),
                 "one block count per level (" + std::to_string(c.model.levels) + " levels)");
