@@ -128,4 +128,34 @@ std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, siz
   return mean;
 }
 
+std::vector<ValidationPoint> validation_curve(const std::vector<TrainLogRow>& rows) {
+  std::vector<ValidationPoint> curve;
+  for (const TrainLogRow& row : rows)
+    if (row.has_valid() && std::isfinite(row.valid_baseline) && row.valid_baseline > 0.0)
+      curve.push_back({row.step, row.wall_s, row.valid_loss / row.valid_baseline});
+  return curve;
+}
+
+double final_validation(const std::vector<ValidationPoint>& curve, size_t window) {
+  window = std::min(std::max<size_t>(window, 1), curve.size());
+  if (window == 0) return std::nan("");
+  double sum = 0.0;
+  for (size_t k = curve.size() - window; k < curve.size(); ++k) sum += curve[k].fraction;
+  return sum / static_cast<double>(window);
+}
+
+std::optional<ValidationPoint> first_reaching(const std::vector<ValidationPoint>& curve,
+                                              double target, size_t window) {
+  window = std::max<size_t>(window, 1);
+  double sum = 0.0;
+  for (size_t k = 0; k < curve.size(); ++k) {
+    sum += curve[k].fraction;
+    if (k >= window) sum -= curve[k - window].fraction;
+    // Compared with a relative tolerance: a run reaches its own final mean exactly.
+    if (k + 1 >= window && sum / static_cast<double>(window) <= target * (1.0 + 1e-12))
+      return curve[k];
+  }
+  return std::nullopt;
+}
+
 }  // namespace bsms

@@ -39,4 +39,25 @@ std::vector<TrainLogRow> read_train_log(const std::string& file);
 // batch of 1-2 scatter over a decade. `window` 0 is taken as 1.
 std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window);
 
+// One validation check as bsms report compares runs: the loss as a fraction of predicting zero
+// on the same frames (runs that validate on different frames, e.g. other seeds, compare by it).
+struct ValidationPoint {
+  int64_t step = 0;
+  double wall_s = 0.0;
+  double fraction = 0.0;  // valid_loss / valid_baseline
+};
+
+// The checks of a log that carry both the loss and its zero-prediction reference, in order.
+std::vector<ValidationPoint> validation_curve(const std::vector<TrainLogRow>& rows);
+
+// Where a run ends: the mean fraction of its last `window` checks (fewer if it has fewer; NaN
+// if none). `window` 0 is taken as 1.
+double final_validation(const std::vector<ValidationPoint>& curve, size_t window);
+
+// The first check at which the mean fraction of the last `window` checks (itself included) is at
+// or below `target`: when a run has reached that loss, read with the same smoothing that sets
+// final_validation. None before `window` checks exist, or if it never gets there.
+std::optional<ValidationPoint> first_reaching(const std::vector<ValidationPoint>& curve,
+                                              double target, size_t window);
+
 }  // namespace bsms

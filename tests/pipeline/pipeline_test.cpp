@@ -161,6 +161,12 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   const std::string paired((std::istreambuf_iterator<char>(twice)),
                            std::istreambuf_iterator<char>());
   EXPECT_NE(paired.find("| 1.000 | 1.000–1.000 |"), std::string::npos) << paired;
+  // The training-cost table needs two runs: the run reaches its own final validation loss at
+  // its end or before it.
+  EXPECT_EQ(text.find("| run | final / zero | wall time (s) |"), std::string::npos);
+  EXPECT_NE(paired.find("| run | final / zero | wall time (s) | reaches "), std::string::npos)
+      << paired;
+  EXPECT_NE(paired.find("×) | – |"), std::string::npos) << paired;
   report.runs = {r.out};
 
   // Teacher forcing (--one-step): every step from the true frames. Its first step is the

@@ -131,5 +131,66 @@ TEST(TrainLogFile, TrailingMeanLossEqualsTheMeanOfEachWindow) {
   EXPECT_TRUE(trailing_mean_loss({}, 5).empty());
 }
 
+// The report's training-cost table: the validation curve keeps only checks with a reference, a
+// run's final loss is the mean of its last checks, and the first check reaching a loss matches a
+// brute-force scan of every window, on many random curves.
+TEST(TrainLogFile, FirstReachingMatchesABruteForceScan) {
+  std::vector<TrainLogRow> rows(6);
+  for (size_t k = 0; k < rows.size(); ++k) {
+    rows[k].step = static_cast<int64_t>(k + 1);
+    rows[k].wall_s = 10.0 * static_cast<double>(k + 1);
+  }
+  rows[1].valid_loss = 0.2;
+  rows[1].valid_baseline = 0.4;
+  rows[3].valid_loss = 0.1;  // a log written before the baseline column: not comparable
+  rows[4].valid_loss = 0.1;
+  rows[4].valid_baseline = 0.5;
+  const std::vector<ValidationPoint> two = validation_curve(rows);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].step, 2);
+  EXPECT_DOUBLE_EQ(two[0].wall_s, 20.0);
+  EXPECT_DOUBLE_EQ(two[0].fraction, 0.5);
+  EXPECT_DOUBLE_EQ(two[1].fraction, 0.2);
+  EXPECT_DOUBLE_EQ(final_validation(two, 5), 0.35);  // fewer checks than the window
+  EXPECT_DOUBLE_EQ(final_validation(two, 1), 0.2);
+  EXPECT_DOUBLE_EQ(final_validation(two, 0), 0.2);
+  EXPECT_TRUE(std::isnan(final_validation({}, 5)));
+  EXPECT_FALSE(first_reaching(two, 1.0, 5).has_value());  // never 5 checks
+  ASSERT_TRUE(first_reaching(two, 0.35, 2).has_value());
+  EXPECT_EQ(first_reaching(two, 0.35, 2)->step, 5);
+
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> noise(-0.05, 0.05);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::vector<ValidationPoint> curve(1 + trial % 40);
+    for (size_t k = 0; k < curve.size(); ++k)
+      curve[k] = {static_cast<int64_t>(1000 * (k + 1)), 7.5 * static_cast<double>(k + 1),
+                  0.8 / (1.0 + 0.2 * static_cast<double>(k)) + noise(rng)};
+    for (size_t window : {1u, 3u, 5u}) {
+      // A run reaches its own final loss, at its last check or before it.
+      const double own = final_validation(curve, window);
+      if (curve.size() >= window) {
+        const auto self = first_reaching(curve, own, window);
+        ASSERT_TRUE(self.has_value()) << "trial " << trial << ", window " << window;
+        EXPECT_LE(self->step, curve.back().step);
+      }
+      for (double target : {0.1, 0.2, 0.3, 0.5, own}) {
+        std::optional<int64_t> brute;
+        for (size_t k = window - 1; k < curve.size() && !brute; ++k) {
+          double sum = 0.0;
+          for (size_t i = k + 1 - window; i <= k; ++i) sum += curve[i].fraction;
+          if (sum / static_cast<double>(window) <= target * (1.0 + 1e-12)) brute = curve[k].step;
+        }
+        const auto found = first_reaching(curve, target, window);
+        ASSERT_EQ(found.has_value(), brute.has_value())
+            << "trial " << trial << ", window " << window << ", target " << target;
+        if (found) {
+          EXPECT_EQ(found->step, *brute);
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace bsms
