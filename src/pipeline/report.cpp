@@ -77,7 +77,7 @@ void write_training_cost(std::ostringstream& md, const std::vector<RunData>& run
   for (const auto& r : runs) curves.push_back(validation_curve(r.log));
   const size_t with_checks = static_cast<size_t>(
       std::count_if(curves.begin(), curves.end(), [](const auto& c) { return !c.empty(); }));
-  if (runs.size() < 2 || with_checks < 2) return;
+  if (with_checks < 2) return;
   const auto name = [&](size_t r) { return fs::path(runs[r].dir).filename().string(); };
   std::vector<double> ends(runs.size()), total(runs.size());
   for (size_t r = 0; r < runs.size(); ++r) {

@@ -109,23 +109,30 @@ std::vector<TrainLogRow> read_train_log(const std::string& file) {
   return rows;
 }
 
-std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window) {
+std::vector<double> trailing_mean(const std::vector<double>& values, size_t window) {
   window = std::max<size_t>(window, 1);
-  std::vector<double> mean(rows.size());
+  std::vector<double> mean(values.size());
   double sum = 0.0;
   size_t finite = 0;
-  for (size_t k = 0; k < rows.size(); ++k) {
-    if (std::isfinite(rows[k].loss)) {
-      sum += rows[k].loss;
+  for (size_t k = 0; k < values.size(); ++k) {
+    if (std::isfinite(values[k])) {
+      sum += values[k];
       ++finite;
     }
-    if (k >= window && std::isfinite(rows[k - window].loss)) {
-      sum -= rows[k - window].loss;
+    if (k >= window && std::isfinite(values[k - window])) {
+      sum -= values[k - window];
       --finite;
     }
     mean[k] = finite ? sum / static_cast<double>(finite) : std::nan("");
   }
   return mean;
+}
+
+std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window) {
+  std::vector<double> losses;
+  losses.reserve(rows.size());
+  for (const TrainLogRow& row : rows) losses.push_back(row.loss);
+  return trailing_mean(losses, window);
 }
 
 std::vector<ValidationPoint> validation_curve(const std::vector<TrainLogRow>& rows) {
@@ -136,25 +143,28 @@ std::vector<ValidationPoint> validation_curve(const std::vector<TrainLogRow>& ro
   return curve;
 }
 
+namespace {
+
+std::vector<double> fractions(const std::vector<ValidationPoint>& curve) {
+  std::vector<double> f;
+  f.reserve(curve.size());
+  for (const ValidationPoint& p : curve) f.push_back(p.fraction);
+  return f;
+}
+
+}  // namespace
+
 double final_validation(const std::vector<ValidationPoint>& curve, size_t window) {
-  window = std::min(std::max<size_t>(window, 1), curve.size());
-  if (window == 0) return std::nan("");
-  double sum = 0.0;
-  for (size_t k = curve.size() - window; k < curve.size(); ++k) sum += curve[k].fraction;
-  return sum / static_cast<double>(window);
+  return curve.empty() ? std::nan("") : trailing_mean(fractions(curve), window).back();
 }
 
 std::optional<ValidationPoint> first_reaching(const std::vector<ValidationPoint>& curve,
                                               double target, size_t window) {
   window = std::max<size_t>(window, 1);
-  double sum = 0.0;
-  for (size_t k = 0; k < curve.size(); ++k) {
-    sum += curve[k].fraction;
-    if (k >= window) sum -= curve[k - window].fraction;
-    // Compared with a relative tolerance: a run reaches its own final mean exactly.
-    if (k + 1 >= window && sum / static_cast<double>(window) <= target * (1.0 + 1e-12))
-      return curve[k];
-  }
+  const std::vector<double> mean = trailing_mean(fractions(curve), window);
+  // Compared with a relative tolerance against a target summed in another order.
+  for (size_t k = window - 1; k < curve.size(); ++k)
+    if (mean[k] <= target * (1.0 + 1e-12)) return curve[k];
   return std::nullopt;
 }
 

@@ -38,6 +38,8 @@ std::vector<TrainLogRow> read_train_log(const std::string& file);
 // included; NaN where there is none): the curve bsms report plots, since per-step losses of a
 // batch of 1-2 scatter over a decade. `window` 0 is taken as 1.
 std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, size_t window);
+// The same over any values: per index, the mean of the finite values among the last `window`.
+std::vector<double> trailing_mean(const std::vector<double>& values, size_t window);
 
 // One validation check as bsms report compares runs: the loss as a fraction of predicting zero
 // on the same frames (runs that validate on different frames, e.g. other seeds, compare by it).
