@@ -8,7 +8,9 @@
 # LONG_TRAIN_SECONDS (3600), LONG_THREADS (0 = all), LONG_SEED (0), LONG_BSMS_LATENT (64),
 # LONG_BSMS_MP (2: BSMS message-passing blocks per level, model.mp_per_level: one count for
 # every level or a list from the mesh down, e.g. [2,1,1,1]), LONG_BSMS_SECONDS
-# (LONG_TRAIN_SECONDS: BSMS's own budget, e.g. half of MGN's to check the training-cost claim))
+# (LONG_TRAIN_SECONDS: BSMS's own budget, e.g. half of MGN's to check the training-cost claim),
+# LONG_SPACING (the family's 0.025 m: node spacing of the disks; 0.0125 gives ~4x the nodes, the
+# finer-mesh check of the training-cost claim), LONG_VALID_EVERY (1000 steps))
 set -euo pipefail
 
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -21,12 +23,15 @@ train_seconds=${LONG_TRAIN_SECONDS:-3600}
 bsms_seconds=${LONG_BSMS_SECONDS:-$train_seconds}
 threads=${LONG_THREADS:-0}
 seed=${LONG_SEED:-0}
+valid_every=${LONG_VALID_EVERY:-1000}
+generate_extra=()
+[[ -n ${LONG_SPACING:-} ]] && generate_extra=(--set "sample.spacing=$LONG_SPACING")
 data=$out_dir/data
 mkdir -p "$out_dir"
 
 # generate resumes by itself (same command, same folder).
 "$bsms" generate "$root/configs/families/disks2d.json" --out "$data" \
-  --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads"
+  --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads" "${generate_extra[@]}"
 # The seeding and level count of configs/train/disks2d-bsms.json: training reads these files
 # (named as its graph cache names them) instead of building its own.
 "$bsms" preprocess --data "$data" --seeding minave --levels 4 --threads "$threads"
@@ -47,13 +52,14 @@ for model in bsms mgn; do
   [[ -f $run/checkpoints/latest.pt ]] && resume=(--resume)
   "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
     "${resume[@]}" --set "data=$data" --set "time_budget_s=$budget" --set steps=10000000 \
-    --set valid_every=1000 "${extra[@]}"
+    --set "valid_every=$valid_every" "${extra[@]}"
   "$bsms" rollout "$run" --split test --threads "$threads"
   # The same model with each prediction averaged over the box's 8 symmetries (README, "Frame
   # averaging"): RUN/rollout_symmetric.
   "$bsms" rollout "$run" --split test --threads "$threads" --symmetrize
 done
 budgets="${train_seconds} s of training each"
+[[ -n ${LONG_SPACING:-} ]] && budgets="node spacing ${LONG_SPACING} m, $budgets"
 [[ $bsms_seconds == "$train_seconds" ]] ||
   budgets="BSMS ${bsms_seconds} s, MeshGraphNets ${train_seconds} s of training"
 "$bsms" report "$out_dir/bsms" "$out_dir/mgn" --out "$out_dir" \
