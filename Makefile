@@ -11,7 +11,7 @@ SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # Debian 12 packages the project needs (DESIGN.md, Dependencies).
 DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh-dev gmsh \
         nlohmann-json3-dev libprotobuf-dev libgloo-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
-        libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq python3-h5py
+        libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq python3-h5py ccache ninja-build
 
 .PHONY: deps build test test-no-torch demo train-long hardcases bench fuzz sanitize sanitize-thread format clean
 
@@ -25,7 +25,7 @@ deps:
 	fi
 
 $(BUILD)/CMakeCache.txt: | deps
-	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release
+	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release
 
 build: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS)

@@ -11,70 +11,132 @@
 namespace bsms {
 namespace fs = std::filesystem;
 
+namespace {
+
+std::string frame_name(int64_t frame) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%06lld", static_cast<long long>(frame));
+  return buf;
+}
+
+std::string xml_escape(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+// A DataItem reading a whole HDF5 dataset; `file` is relative to the XDMF file's folder.
+std::string item(const std::string& dims, bool integer, const std::string& file,
+                 const std::string& dataset) {
+  return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + (integer ? "Int" : "Float") +
+         "\" Precision=\"4\" Format=\"HDF\">" + xml_escape(file) + ":" + dataset + "</DataItem>\n";
+}
+
+// Components of a field's view: 0 for a scalar ([N]), 3 for vectors, else the field's width.
+hsize_t view_width(int64_t width) {
+  return width <= 1 ? 0 : width <= 3 ? 3 : static_cast<hsize_t>(width);
+}
+
+std::string dims(int64_t n, hsize_t width) {
+  return width > 0 ? std::to_string(n) + " " + std::to_string(width) : std::to_string(n);
+}
+
+}  // namespace
+
+std::string xdmf_views_path(const std::string& xdmf_path) {
+  return xdmf_path + ".h5";
+}
+
 void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_path) {
   if (d.is_public_layout())
-    throw InputError(d.location() + ": XDMF export needs a bsms dataset file");
+    throw InputError(d.location() +
+                     ": XDMF describes bsms dataset files (bsms export --out converts this one)");
   const auto& mesh = d.mesh(t);
   const int64_t n = mesh.num_nodes(), c = mesh.num_cells(), frames = d.num_frames(t);
-  const int dim = mesh.dim;
-  char group[64];
-  std::snprintf(group, sizeof group, "/trajectories/%06lld", static_cast<long long>(t));
+  const std::string group = "/trajectories/" + frame_name(t);
   const fs::path base = fs::absolute(xdmf_path).parent_path();
   const std::string h5 = fs::relative(fs::absolute(d.location()), base).string();
-  const char* topology = mesh.cell_size == 4   ? "Tetrahedron"
+  const std::string views_path = xdmf_views_path(xdmf_path);
+  const std::string views = fs::path(views_path).filename().string();
+  const char* topology = mesh.cell_size == 4   ? (mesh.dim == 3 ? "Tetrahedron" : "Quadrilateral")
                          : mesh.cell_size == 3 ? "Triangle"
-                                               : "Polyline";
+                         : mesh.cell_size == 2 ? "Polyline"
+                                               : "Polyvertex";
   const double dt = d.frame_dt() > 0 ? d.frame_dt() : 1.0;
   const bool moving = d.has_field("world_pos");
-  // Geometry: world positions when the nodes move (cloth: 3-D world, 2-D mesh), else the mesh.
-  const int geometry_dim = moving ? d.dim() : dim;
+  std::vector<FieldInfo> attributes;
+  for (const auto& field : d.fields())
+    if (!(field.name == "world_pos" && moving)) attributes.push_back(field);
+
+  // The views: one virtual dataset per frame and field, mapping the dataset file (the mapping is
+  // resolved from the views file's folder, the XDMF's, so `h5` is the right name there too).
+  AtomicOutput views_out(views_path);
+  {
+    const H5File source(d.location(), H5File::Mode::kRead);
+    H5File v(views_out.temp_path(), H5File::Mode::kTruncate);
+    v.set_attr("/", "format", std::string("bsms-xdmf-views"));
+    v.set_attr("/", "source", h5);
+    if (moving) {
+      const Shape shape = source.shape(group + "/world_pos");
+      for (int64_t f = 0; f < frames; ++f)
+        v.write_virtual("/world_pos/" + frame_name(f), h5, group + "/world_pos", shape, f, 3);
+    } else {
+      v.write_virtual("/mesh_pos", h5, group + "/mesh_pos", source.shape(group + "/mesh_pos"), -1,
+                      3);
+    }
+    for (const auto& field : attributes) {
+      const Shape shape = source.shape(group + "/" + field.name);
+      for (int64_t f = 0; f < frames; ++f)
+        v.write_virtual("/" + field.name + "/" + frame_name(f), h5, group + "/" + field.name, shape,
+                        f, view_width(field.width));
+    }
+    v.close();
+  }
 
   std::ostringstream x;
+  x.precision(12);
   x << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n<Domain>\n"
     << "<Grid Name=\"trajectory_" << t
     << "\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
-  auto slab = [&](const std::string& field, int64_t frame, int64_t width) {
-    std::ostringstream s;
-    const std::string dims =
-        width > 1 ? std::to_string(n) + " " + std::to_string(width) : std::to_string(n);
-    const std::string full = std::to_string(frames) + " " + std::to_string(n) +
-                             (width > 1 ? " " + std::to_string(width) : "");
-    const int rank = width > 1 ? 3 : 2;
-    s << "<DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << "\">\n"
-      << "<DataItem Dimensions=\"3 " << rank << "\" Format=\"XML\">" << frame << " 0"
-      << (rank == 3 ? " 0" : "") << " 1 1" << (rank == 3 ? " 1" : "") << " 1 " << n
-      << (rank == 3 ? " " + std::to_string(width) : "") << "</DataItem>\n"
-      << "<DataItem Dimensions=\"" << full
-      << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << h5 << ":" << group << "/"
-      << field << "</DataItem>\n</DataItem>\n";
-    return s.str();
-  };
   for (int64_t f = 0; f < frames; ++f) {
     x << "<Grid Name=\"frame_" << f << "\" GridType=\"Uniform\">\n"
       << "<Time Value=\"" << f * dt << "\"/>\n"
-      << "<Topology TopologyType=\"" << topology << "\" NumberOfElements=\"" << c << "\">\n"
-      << "<DataItem Dimensions=\"" << c << " " << mesh.cell_size
-      << "\" NumberType=\"Int\" Format=\"HDF\">" << h5 << ":" << group << "/cells</DataItem>\n"
-      << "</Topology>\n"
-      << "<Geometry GeometryType=\"" << (geometry_dim == 3 ? "XYZ" : "XY") << "\">\n";
-    if (moving) {
-      x << slab("world_pos", f, geometry_dim);
-    } else {
-      x << "<DataItem Dimensions=\"" << n << " " << dim
-        << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">" << h5 << ":" << group
-        << "/mesh_pos</DataItem>\n";
-    }
-    x << "</Geometry>\n";
-    for (const char* field : {"node_type", "body_id"}) {
+      << "<Topology TopologyType=\"" << topology << "\" NumberOfElements=\"" << c << "\"";
+    if (mesh.cell_size <= 2) x << " NodesPerElement=\"" << mesh.cell_size << "\"";
+    x << ">\n"
+      << item(std::to_string(c) + " " + std::to_string(mesh.cell_size), true, h5, group + "/cells")
+      << "</Topology>\n<Geometry GeometryType=\"XYZ\">\n"
+      << item(dims(n, 3), false, views, moving ? "/world_pos/" + frame_name(f) : "/mesh_pos")
+      << "</Geometry>\n";
+    for (const char* field : {"node_type", "body_id"})
       x << "<Attribute Name=\"" << field << "\" AttributeType=\"Scalar\" Center=\"Node\">\n"
-        << "<DataItem Dimensions=\"" << n << "\" NumberType=\"Int\" Format=\"HDF\">" << h5 << ":"
-        << group << "/" << field << "</DataItem>\n</Attribute>\n";
-    }
-    for (const auto& field : d.fields()) {
-      if (field.name == "world_pos" && moving) continue;
-      x << "<Attribute Name=\"" << field.name << "\" AttributeType=\""
-        << (field.width > 1 ? "Vector" : "Scalar") << "\" Center=\"Node\">\n"
-        << slab(field.name, f, field.width) << "</Attribute>\n";
+        << item(std::to_string(n), true, h5, group + "/" + field) << "</Attribute>\n";
+    for (const auto& field : attributes) {
+      const hsize_t width = view_width(field.width);
+      x << "<Attribute Name=\"" << xml_escape(field.name) << "\" AttributeType=\""
+        << (width == 0   ? "Scalar"
+            : width == 3 ? "Vector"
+                         : "Matrix")
+        << "\" Center=\"Node\">\n"
+        << item(dims(n, width), false, views, "/" + field.name + "/" + frame_name(f))
+        << "</Attribute>\n";
     }
     x << "</Grid>\n";
   }
@@ -86,6 +148,7 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
     file << x.str();
     if (!file) throw IoError(xdmf_path + ": cannot write");
   }
+  views_out.commit();
   out.commit();
 }
 

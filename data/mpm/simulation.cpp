@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -55,62 +56,88 @@ struct FrameRecorder {
   }
 };
 
-std::string hyperslab(int64_t frame, int64_t frames, int64_t particles, int comps,
-                      const std::string& dataset) {
-  std::ostringstream s;
-  const std::string dims = comps > 0 ? std::to_string(particles) + " " + std::to_string(comps)
-                                     : std::to_string(particles);
-  const std::string full = std::to_string(frames) + " " + dims;
-  s << "        <DataItem ItemType=\"HyperSlab\" Dimensions=\"" << dims << "\">\n";
-  if (comps > 0) {
-    s << "          <DataItem Dimensions=\"3 3\" Format=\"XML\">" << frame << " 0 0 1 1 1 1 "
-      << particles << " " << comps << "</DataItem>\n";
-  } else {
-    s << "          <DataItem Dimensions=\"3 2\" Format=\"XML\">" << frame << " 0 1 1 1 "
-      << particles << "</DataItem>\n";
-  }
-  s << "          <DataItem Dimensions=\"" << full
-    << "\" NumberType=\"Float\" Precision=\"4\" Format=\"HDF\">frames.h5:" << dataset
-    << "</DataItem>\n        </DataItem>\n";
-  return s.str();
+std::string frame_name(int64_t frame) {
+  char buf[24];
+  std::snprintf(buf, sizeof buf, "%06lld", static_cast<long long>(frame));
+  return buf;
 }
 
+// DIR/frames.xdmf and the views it reads, DIR/frames.xdmf.h5. As for dataset XDMF
+// (data/dataset/xdmf.hpp, where the readers' constraints are): each frame of a [T, P(, dim)]
+// array of frames.h5 is a virtual dataset of the views file (no copy), positions and velocities
+// with 3 components; the Polyvertex cells are an explicit index list, without which the Xdmf3
+// readers make no cells.
 template <int Dim>
-void write_xdmf(const std::string& path, const FrameRecorder<Dim>& rec, int64_t particles) {
-  AtomicOutput out(path);
+void write_xdmf(const std::string& dir, const FrameRecorder<Dim>& rec, int64_t particles) {
+  const std::string xdmf_path = (std::filesystem::path(dir) / "frames.xdmf").string();
+  const std::string views = "frames.xdmf.h5";
+  const int64_t frames = static_cast<int64_t>(rec.time.size());
+  const hsize_t T = static_cast<hsize_t>(frames), P = static_cast<hsize_t>(particles);
+  struct Field {
+    const char* name;     // attribute name in the XDMF
+    const char* dataset;  // in frames.h5
+    bool vector;
+  };
+  std::vector<Field> fields;
+  if (rec.with_velocity) fields.push_back({"velocity", "/frames/velocity", true});
+  if (rec.with_stress) fields.push_back({"von_mises", "/frames/stress", false});
+  if (rec.with_plastic) fields.push_back({"plastic_strain", "/frames/plastic_strain", false});
+
+  AtomicOutput views_out((std::filesystem::path(dir) / views).string());
+  {
+    H5File v(views_out.temp_path(), H5File::Mode::kTruncate);
+    v.set_attr("/", "format", std::string("bsms-xdmf-views"));
+    v.set_attr("/", "source", std::string("frames.h5"));
+    std::vector<int32_t> index(static_cast<size_t>(particles));
+    for (int64_t p = 0; p < particles; ++p) index[static_cast<size_t>(p)] = static_cast<int32_t>(p);
+    v.write("/connectivity", index, {P});
+    for (int64_t t = 0; t < frames; ++t) {
+      v.write_virtual("/position/" + frame_name(t), "frames.h5", "/frames/position", {T, P, Dim}, t,
+                      3);
+      for (const auto& field : fields)
+        v.write_virtual(std::string("/") + field.name + "/" + frame_name(t), "frames.h5",
+                        field.dataset, field.vector ? Shape{T, P, Dim} : Shape{T, P}, t,
+                        field.vector ? 3 : 0);
+    }
+    v.close();
+  }
+
+  AtomicOutput out(xdmf_path);
   {
     std::ofstream f(out.temp_path());
-    const int64_t frames = static_cast<int64_t>(rec.time.size());
+    const std::string p = std::to_string(particles);
+    auto item = [&](const std::string& dims, const char* type, int precision,
+                    const std::string& file, const std::string& dataset) {
+      return "          <DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type +
+             "\" Precision=\"" + std::to_string(precision) + "\" Format=\"HDF\">" + file + ":" +
+             dataset + "</DataItem>\n";
+    };
     f << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
       << "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
+    f.precision(17);
     for (int64_t t = 0; t < frames; ++t) {
-      f.precision(17);
       f << "      <Grid Name=\"frame_" << t << "\" GridType=\"Uniform\">\n"
         << "        <Time Value=\"" << rec.time[t] << "\"/>\n"
-        << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << particles
-        << "\" NodesPerElement=\"1\"/>\n"
-        << "        <Geometry GeometryType=\"" << (Dim == 2 ? "XY" : "XYZ") << "\">\n"
-        << hyperslab(t, frames, particles, Dim, "/frames/position") << "        </Geometry>\n";
-      if (rec.with_velocity)
-        f << "        <Attribute Name=\"velocity\" AttributeType=\"Vector\" Center=\"Node\">\n"
-          << hyperslab(t, frames, particles, Dim, "/frames/velocity") << "        </Attribute>\n";
-      if (rec.with_stress)
-        f << "        <Attribute Name=\"von_mises\" AttributeType=\"Scalar\" Center=\"Node\">\n"
-          << hyperslab(t, frames, particles, 0, "/frames/stress") << "        </Attribute>\n";
-      if (rec.with_plastic)
-        f << "        <Attribute Name=\"plastic_strain\" AttributeType=\"Scalar\" "
-             "Center=\"Node\">\n"
-          << hyperslab(t, frames, particles, 0, "/frames/plastic_strain")
+        << "        <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << p
+        << "\" NodesPerElement=\"1\">\n"
+        << item(p, "Int", 4, views, "/connectivity") << "        </Topology>\n"
+        << "        <Geometry GeometryType=\"XYZ\">\n"
+        << item(p + " 3", "Float", 4, views, "/position/" + frame_name(t))
+        << "        </Geometry>\n";
+      for (const auto& field : fields)
+        f << "        <Attribute Name=\"" << field.name << "\" AttributeType=\""
+          << (field.vector ? "Vector" : "Scalar") << "\" Center=\"Node\">\n"
+          << item(field.vector ? p + " 3" : p, "Float", 4, views,
+                  std::string("/") + field.name + "/" + frame_name(t))
           << "        </Attribute>\n";
       f << "        <Attribute Name=\"mass\" AttributeType=\"Scalar\" Center=\"Node\">\n"
-        << "          <DataItem Dimensions=\"" << particles
-        << "\" NumberType=\"Float\" Precision=\"8\" "
-           "Format=\"HDF\">frames.h5:/particles/mass</DataItem>\n"
-        << "        </Attribute>\n      </Grid>\n";
+        << item(p, "Float", 8, "frames.h5", "/particles/mass") << "        </Attribute>\n"
+        << "      </Grid>\n";
     }
     f << "    </Grid>\n  </Domain>\n</Xdmf>\n";
     if (!f) throw IoError(out.temp_path() + ": write failed");
   }
+  views_out.commit();
   out.commit();
 }
 
@@ -187,7 +214,7 @@ SimulationSummary run(const Scene& scene, const std::string& out_dir, bool progr
     f.close();
   }
   out.commit();
-  write_xdmf<Dim>((std::filesystem::path(out_dir) / "frames.xdmf").string(), rec, s.particles);
+  write_xdmf<Dim>(out_dir, rec, s.particles);
   AtomicOutput resolved((std::filesystem::path(out_dir) / "scene.json").string());
   {
     std::ofstream f(resolved.temp_path());

@@ -1,6 +1,7 @@
 // Running a scene end to end and writing its frames (DESIGN.md "Simulation frames"):
-// DIR/frames.h5, DIR/frames.xdmf (XDMF 3 temporal collection of Polyvertex grids for ParaView)
-// and DIR/scene.json (the resolved scene).
+// DIR/frames.h5, DIR/frames.xdmf (XDMF 3 temporal collection of Polyvertex grids for ParaView,
+// reading DIR/frames.xdmf.h5: per-frame views of frames.h5) and DIR/scene.json (the resolved
+// scene).
 #pragma once
 
 #include <cstdint>

@@ -55,4 +55,4 @@ class RemoveOnFailure {
 #define BSMS_CONCAT_INNER(a, b) a##b
 #define BSMS_CONCAT(a, b) BSMS_CONCAT_INNER(a, b)
 #define BSMS_COMMAND(name, help, setup) \
-  static ::bsms::cli::CommandRegistrar BSMS_CONCAT(bsms_command_, __LINE__)({name, help, setup})
+  static ::bsms::cli::CommandRegistrar BSMS_CONCAT(bsms_command_, __COUNTER__)({name, help, setup})

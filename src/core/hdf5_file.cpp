@@ -179,6 +179,46 @@ void H5File::write(const std::string& name, const T* data, const Shape& shape, h
     throw IoError(path_ + ": cannot write dataset " + name + " (disk full?)");
 }
 
+void H5File::write_virtual(const std::string& name, const std::string& source_file,
+                           const std::string& source_dataset, const Shape& source_shape,
+                           int64_t frame, hsize_t width) {
+  const size_t lead = frame >= 0 ? 1 : 0;
+  if (source_shape.size() < lead + 1 || source_shape.size() > lead + 2 ||
+      (frame >= 0 && static_cast<hsize_t>(frame) >= source_shape[0]))
+    throw IoError(path_ + ": virtual dataset " + name + ": bad source shape or frame");
+  const hsize_t rows = source_shape[lead];
+  const hsize_t source_width = source_shape.size() == lead + 2 ? source_shape[lead + 1] : 1;
+  if (width > 0 ? source_width > width : source_width != 1)
+    throw IoError(path_ + ": virtual dataset " + name + " is narrower than its source");
+  const auto slash = name.rfind('/');
+  if (slash != std::string::npos && slash > 0) create_group(name.substr(0, slash));
+  if (H5Lexists(id_, name.c_str(), H5P_DEFAULT) > 0) remove(name);
+
+  const Shape extent = width > 0 ? Shape{rows, width} : Shape{rows};
+  Handle space(H5Screate_simple(static_cast<int>(extent.size()), extent.data(), nullptr));
+  Handle mapped(H5Scopy(space.get()));
+  const Shape zero(extent.size(), 0);
+  const Shape block = width > 0 ? Shape{rows, source_width} : Shape{rows};
+  H5Sselect_hyperslab(mapped.get(), H5S_SELECT_SET, zero.data(), nullptr, block.data(), nullptr);
+  Handle source(
+      H5Screate_simple(static_cast<int>(source_shape.size()), source_shape.data(), nullptr));
+  Shape start(source_shape.size(), 0), count = source_shape;
+  if (frame >= 0) {
+    start[0] = static_cast<hsize_t>(frame);
+    count[0] = 1;
+  }
+  H5Sselect_hyperslab(source.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
+  Handle plist(H5Pcreate(H5P_DATASET_CREATE));
+  const float fill = 0.0f;
+  if (H5Pset_fill_value(plist.get(), H5T_NATIVE_FLOAT, &fill) < 0 ||
+      H5Pset_virtual(plist.get(), mapped.get(), source_file.c_str(), source_dataset.c_str(),
+                     source.get()) < 0)
+    throw IoError(path_ + ": cannot map virtual dataset " + name);
+  Handle set(H5Dcreate2(id_, name.c_str(), H5T_IEEE_F32LE, space.get(), H5P_DEFAULT, plist.get(),
+                        H5P_DEFAULT));
+  if (!set.ok()) throw IoError(path_ + ": cannot create virtual dataset " + name);
+}
+
 Shape H5File::shape(const std::string& name) const {
   if (!exists(name)) throw InputError(path_ + ": missing dataset " + name);
   Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));

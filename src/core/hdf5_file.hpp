@@ -66,6 +66,15 @@ class H5File {
     write(name, data.data(), shape, chunk_rows);
   }
 
+  // Creates the float32 virtual dataset `name`, [rows] (width 0) or [rows, width], whose values
+  // are frame `frame` of the float32 dataset `source_dataset` in `source_file`: the source is
+  // [frames, rows(, w)], or [rows(, w)] when `frame` < 0, with w <= width; columns from w on read
+  // as 0. Only the mapping is stored (the data stay in the source); a relative `source_file` is
+  // looked up in this file's folder when read.
+  void write_virtual(const std::string& name, const std::string& source_file,
+                     const std::string& source_dataset, const Shape& source_shape, int64_t frame,
+                     hsize_t width);
+
   Shape shape(const std::string& name) const;
   // Reads a whole dataset, converting to T; checks rank/extent against `expect` where given
   // (0 in `expect` matches any extent).

@@ -14,7 +14,7 @@
 // max_R tr(R H) = s_1 + … + s_{d-1} + sign(det H) s_d (Kabsch, reflections excluded).
 #pragma once
 
-#include <torch/torch.h>
+#include <torch/types.h>
 
 #include <cstdint>
 #include <vector>

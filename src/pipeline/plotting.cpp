@@ -19,6 +19,12 @@ std::string gnuplot_png_preamble(const std::string& png, int width, int height) 
          " font ',11' noenhanced\nset output " + gnuplot_quoted(png) + "\n";
 }
 
+std::string gnuplot_gif_preamble(const std::string& gif, int width, int height, int delay_cs) {
+  return "set terminal gif animate delay " + std::to_string(delay_cs) + " loop 0 optimize size " +
+         std::to_string(width) + "," + std::to_string(height) + " noenhanced\nset output " +
+         gnuplot_quoted(gif) + "\n";
+}
+
 bool gnuplot_available() {
   static const bool available = std::system("command -v gnuplot >/dev/null 2>&1") == 0;
   return available;

@@ -10,6 +10,10 @@ namespace bsms {
 // labels printed as given) and the output file `png`.
 std::string gnuplot_png_preamble(const std::string& png, int width = 900, int height = 560);
 
+// The same for an animated GIF (gnuplot's gif terminal: every plot command adds a frame, shown
+// for `delay_cs` hundredths of a second; the animation loops).
+std::string gnuplot_gif_preamble(const std::string& gif, int width, int height, int delay_cs = 8);
+
 // A gnuplot single-quoted string (a quote inside is doubled).
 std::string gnuplot_quoted(const std::string& s);
 

@@ -12,6 +12,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
+#include "pipeline/animation.hpp"
 #include "pipeline/number_format.hpp"
 #include "pipeline/plotting.hpp"
 #include "pipeline/rollout_metrics.hpp"
@@ -241,7 +242,8 @@ std::string write_report(const ReportRequest& request) {
     g << '\n';
     if (draw_plot(plots / "loss_vs_wall.gp", g.str())) images.push_back("loss_vs_wall.png");
   }
-  // Ground truth next to prediction: first trajectory of each run, three frames.
+  // Ground truth next to prediction: first trajectory of each run, three frames, and an animation
+  // of every frame.
   for (size_t r = 0; r < runs.size(); ++r) {
     const std::string& split = runs[r].metrics.split;
     const fs::path h5 = fs::path(runs[r].dir) / rollout / (split + ".h5");
@@ -273,6 +275,10 @@ std::string write_report(const ReportRequest& request) {
     g << "unset multiplot\n";
     const fs::path script = plots / ("rollout_" + std::to_string(r) + ".gp");
     if (draw_plot(script, g.str())) images.push_back("rollout_" + std::to_string(r) + ".png");
+    const std::string animation = "rollout_" + std::to_string(r) + "_animation";
+    if (animate_rollout(d, plots.string(), animation,
+                        runs[r].label + ", trajectory 0: truth (grey), prediction (red)"))
+      images.push_back(animation + ".gif");
   }
 
   // --- report.md

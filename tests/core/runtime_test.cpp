@@ -50,8 +50,8 @@ TEST(BlasCoreOverride, PartialAvx512TakesTheAvx2Kernels) {
 }
 
 TEST(BlasCoreOverride, OpenBlasOwnVectorChoiceStands) {
-  for (const char* core :
-       {"Haswell", "Zen", "SkylakeX", "CooperLake", "SapphireRapids", "HASWELL", "skylakex"}) {
+  for (const char* core : {"Haswell", "Zen", "SkylakeX", "CooperLake", "Cooperlake",
+                           "SapphireRapids", "HASWELL", "skylakex"}) {
     EXPECT_EQ(blas_core_override(core, avx512_cpu()), "") << core;
     EXPECT_EQ(blas_core_override(core, avx2_cpu()), "") << core;
   }

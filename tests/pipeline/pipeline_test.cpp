@@ -16,6 +16,9 @@
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
+#include "gif_frames.hpp"
+#include "pipeline/animation.hpp"
+#include "pipeline/plotting.hpp"
 #include "pipeline/report.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/run_files.hpp"
@@ -155,6 +158,22 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NE(text.find("| rigid bodies (each body's first shape held) |"), std::string::npos);
   EXPECT_NE(text.find("| run | RMSE-all / constant velocity | 95 % interval |"), std::string::npos)
       << text;
+  // An animation of every frame beside the still frames, each frame titled with its error.
+  if (gnuplot_available()) {
+    EXPECT_NE(text.find("](plots/rollout_0.png)"), std::string::npos) << text;
+    EXPECT_NE(text.find("](plots/rollout_0_animation.gif)"), std::string::npos) << text;
+    const fs::path plots = fs::path(report.out) / "plots";
+    std::ifstream gif(plots / "rollout_0_animation.gif", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(gif)),
+                            std::istreambuf_iterator<char>());
+    EXPECT_EQ(testing::gif_frames(bytes), 30);
+    std::ifstream gp(plots / "rollout_0_animation.gp");
+    const std::string script((std::istreambuf_iterator<char>(gp)),
+                             std::istreambuf_iterator<char>());
+    const size_t at = script.rfind(',', script.find("]\n", script.find("array err[30] = [")));
+    ASSERT_NE(at, std::string::npos) << script;
+    EXPECT_NEAR(std::stod(script.substr(at + 1)), rms_distance(last, truth, 2), 1e-6) << script;
+  }
   // The same run twice: paired against itself, the ratio and its interval are exactly 1.
   report.runs = {r.out, r.out};
   std::ifstream twice(write_report(report));

@@ -220,8 +220,25 @@ TEST(Simulation, WritesFramesFileAsSpecified) {
   std::ifstream xdmf(dir / "frames.xdmf");
   std::stringstream text;
   text << xdmf.rdbuf();
+  // The form every ParaView reader opens (data/dataset/xdmf.hpp): no HyperSlab items; each frame
+  // a view of frames.h5 in frames.xdmf.h5, positions with 3 components; explicit vertex cells.
   EXPECT_NE(text.str().find("Polyvertex"), std::string::npos);
-  EXPECT_NE(text.str().find("frames.h5:/frames/position"), std::string::npos);
+  EXPECT_EQ(text.str().find("HyperSlab"), std::string::npos);
+  EXPECT_NE(text.str().find("Dimensions=\"400 3\" NumberType=\"Float\" Precision=\"4\" "
+                            "Format=\"HDF\">frames.xdmf.h5:/position/000004<"),
+            std::string::npos);
+  EXPECT_NE(text.str().find(">frames.xdmf.h5:/connectivity<"), std::string::npos);
+  {
+    const H5File views((dir / "frames.xdmf.h5").string(), H5File::Mode::kRead);
+    const auto position = f.read<float>("/frames/position");
+    Shape shape;
+    const auto last = views.read<float>("/position/000004", &shape);
+    EXPECT_EQ(shape, (Shape{400, 3}));
+    EXPECT_EQ(last[3 * 7 + 1], position[(4 * 400 + 7) * 2 + 1]);
+    EXPECT_EQ(last[3 * 7 + 2], 0.0f);
+    EXPECT_EQ(views.read<float>("/von_mises/000002").size(), 400u);
+    EXPECT_EQ(views.read<int32_t>("/connectivity")[399], 399);
+  }
   EXPECT_TRUE(fs::exists(dir / "scene.json"));
   fs::remove_all(dir);
 }
