@@ -4,4 +4,4 @@
 add_test(NAME cli.train_crash_resume
   COMMAND ${CMAKE_CURRENT_LIST_DIR}/crash_resume.sh $<TARGET_FILE:bsms> ${PROJECT_SOURCE_DIR}
           ${CMAKE_CURRENT_BINARY_DIR}/crash_resume 13 24)
-set_tests_properties(cli.train_crash_resume PROPERTIES TIMEOUT 600)
+set_tests_properties(cli.train_crash_resume PROPERTIES TIMEOUT 600 COST 60)

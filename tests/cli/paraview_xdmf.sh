@@ -2,10 +2,11 @@
 # ParaView opens every kind of XDMF bsms writes, in each of its three XDMF readers (XDMFReader,
 # Xdmf3ReaderS, Xdmf3ReaderT), without an error or warning line and without crashing, with the
 # HDF5 source's point and cell counts, time steps, one point's coordinates and one node field's
-# value (paraview_xdmf.py). Kinds: a bsms dataset (2-D, exported to another folder), a rollout
-# (a 3-step run rolled out), the MeshGraphNets fixtures exported (cylinder_flow and airfoil:
-# Eulerian, fixed mesh; deforming_plate: 3-D tetrahedra; flag_simple: cloth, 2-D mesh in 3-D) and
-# the solver's particle frames (bsms simulate, 2-D and 3-D Polyvertex).
+# value (paraview_xdmf.py). Kinds: a bsms dataset (2-D, exported to another folder), rollouts (a
+# 3-step run rolled out, Lagrangian, and one on cylinder_flow, Eulerian), the MeshGraphNets
+# fixtures exported (cylinder_flow and airfoil: Eulerian, fixed mesh; deforming_plate: 3-D
+# tetrahedra; flag_simple: cloth, 2-D mesh in 3-D) and the solver's particle frames (bsms
+# simulate, 2-D and 3-D Polyvertex).
 #
 #   paraview_xdmf.sh BSMS SRC WORK
 #
@@ -45,6 +46,13 @@ printf '{"data": "%s", "steps": 3, "valid_every": 2, "valid_samples": 2, "normal
   "$work/data" >run.json
 quiet "$bsms" train run.json --out run --threads 1
 quiet "$bsms" rollout run --threads 1
+# An Eulerian rollout: a BSMS run trained 3 steps on a copy of the cylinder_flow fixture (training
+# caches graphs beside its data), rolled out on 5 steps of one test trajectory.
+cp -r "$fixtures/cylinder_flow" cylinder_data
+quiet "$bsms" train "$src/configs/train/cylinder-bsms.json" --set data="$work/cylinder_data" \
+  --set steps=3 --set valid_every=2 --set valid_samples=1 --set normalizer_steps=2 \
+  --set model.latent=8 --out run_cylinder --threads 1
+quiet "$bsms" rollout run_cylinder --trajectories 1 --steps 5 --threads 1
 for name in cylinder_flow airfoil deforming_plate flag_simple; do
   quiet "$bsms" export "$fixtures/$name" --xdmf --split train --trajectory 0 --out "mgn_$name"
 done
@@ -58,6 +66,7 @@ quiet "$bsms" simulate "$src/configs/scenes/sphere_expansion.json" --out frames3
 cases=(
   "bsms_view/train_000000.xdmf dataset data/train.h5 velocity"
   "run/rollout/test_000000.xdmf dataset run/rollout/test.h5 target_world_pos"
+  "run_cylinder/rollout/test_000000.xdmf dataset run_cylinder/rollout/test.h5 velocity"
   "mgn_cylinder_flow/train_000000.xdmf dataset mgn_cylinder_flow/train_000000.h5 velocity"
   "mgn_airfoil/train_000000.xdmf dataset mgn_airfoil/train_000000.h5 density"
   "mgn_deforming_plate/train_000000.xdmf dataset mgn_deforming_plate/train_000000.h5 stress"
