@@ -38,7 +38,7 @@ mkdir -p "$out_dir"
 
 # BSMS trains at latent 64 with 2 message-passing blocks per level here: the shipped 32 and 1 win
 # the demo's minutes, 64 wins from 20 min on, and 2 blocks win at equal steps and at equal time
-# (README, "Long recipe"; 2 blocks on the mesh level and 1 below, [2,1,1,1], lead at 30 min and
+# (docs/results.md, "Long recipe"; 2 blocks on the mesh level and 1 below, [2,1,1,1], lead at 30 min and
 # not at 60: "Blocks where the signal is"). MeshGraphNets keeps its shipped config (latent 32,
 # 15 message passings).
 for model in bsms mgn; do
@@ -54,7 +54,7 @@ for model in bsms mgn; do
     "${resume[@]}" --set "data=$data" --set "time_budget_s=$budget" --set steps=10000000 \
     --set "valid_every=$valid_every" "${extra[@]}"
   "$bsms" rollout "$run" --split test --threads "$threads"
-  # The same model with each prediction averaged over the box's 8 symmetries (README, "Frame
+  # The same model with each prediction averaged over the box's 8 symmetries (docs/results.md, "Frame
   # averaging"): RUN/rollout_symmetric.
   "$bsms" rollout "$run" --split test --threads "$threads" --symmetrize
 done
