@@ -211,8 +211,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   const LagrangianAdapter& adapter = *first.adapter;
 
   const fs::path out_dir = rollout_outputs::out_dir(request);
+  const std::string out_h5 = rollout_outputs::prediction_file(out_dir, request.split, data);
   fs::create_directories(out_dir, ec);
-  const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
   DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
 
   const double frame_dt = data.frame_dt() > 0 ? data.frame_dt() : 1.0;

@@ -55,8 +55,8 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
   const EulerianAdapter adapter(spec);
 
   const fs::path out_dir = rollout_outputs::out_dir(request);
+  const std::string out_h5 = rollout_outputs::prediction_file(out_dir, request.split, data);
   fs::create_directories(out_dir, ec);
-  const std::string out_h5 = (out_dir / (request.split + ".h5")).string();
   DatasetWriter writer(out_h5, data.scene(), spec.dim, data.frame_dt());
 
   // Per field: squared error sums per step (model, persistence) and node-value counts.

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "core/config.hpp"
+#include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/xdmf.hpp"
@@ -18,6 +19,16 @@ fs::path out_dir(const RolloutRequest& request) {
   return fs::path(request.run) / ((request.one_step ? "rollout_one_step" : "rollout") +
                                   std::string(request.ensemble.empty() ? "" : "_ensemble") +
                                   std::string(request.symmetrize ? "_symmetric" : ""));
+}
+
+std::string prediction_file(const fs::path& out_dir, const std::string& split,
+                            const Dataset& data) {
+  const fs::path file = out_dir / (split + ".h5");
+  std::error_code ec;
+  if (fs::exists(file, ec) && fs::equivalent(file, data.location(), ec))
+    throw InputError(file.string() +
+                     ": is the dataset being rolled out; give --out a folder other than --data");
+  return file.string();
 }
 
 void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,

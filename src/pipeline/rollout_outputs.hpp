@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "data/dataset/dataset.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/rollout_metrics.hpp"
 #include "pipeline/train_config.hpp"
@@ -16,6 +17,11 @@ namespace bsms::rollout_outputs {
 
 // RUN/rollout, or the request's --out folder: the predicted trajectories and metrics.json.
 std::filesystem::path out_dir(const RolloutRequest& request);
+
+// OUT_DIR/SPLIT.h5, the file the predicted trajectories go to; an InputError when it is the
+// dataset being rolled out (`--out` the `--data` folder), which the predictions would replace.
+std::string prediction_file(const std::filesystem::path& out_dir, const std::string& split,
+                            const Dataset& data);
 
 // The XDMF companions of a written rollout file (SPLIT_000000.xdmf, ...) beside it.
 void write_xdmf_files(const std::string& out_h5, const std::filesystem::path& out_dir,
