@@ -7,47 +7,12 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "core/xdmf_text.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
 
 namespace {
-
-std::string frame_name(int64_t frame) {
-  char buf[24];
-  std::snprintf(buf, sizeof buf, "%06lld", static_cast<long long>(frame));
-  return buf;
-}
-
-std::string xml_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
-// A DataItem reading a whole HDF5 dataset; `file` is relative to the XDMF file's folder.
-std::string item(const std::string& dims, bool integer, const std::string& file,
-                 const std::string& dataset) {
-  return "<DataItem Dimensions=\"" + dims + "\" NumberType=\"" + (integer ? "Int" : "Float") +
-         "\" Precision=\"4\" Format=\"HDF\">" + xml_escape(file) + ":" + dataset + "</DataItem>\n";
-}
 
 // Components of a field's view: 0 for a scalar ([N]), 3 for vectors, else the field's width.
 hsize_t view_width(int64_t width) {
@@ -70,7 +35,7 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
                      ": XDMF describes bsms dataset files (bsms export --out converts this one)");
   const auto& mesh = d.mesh(t);
   const int64_t n = mesh.num_nodes(), c = mesh.num_cells(), frames = d.num_frames(t);
-  const std::string group = "/trajectories/" + frame_name(t);
+  const std::string group = "/trajectories/" + xdmf_index_name(t);
   const fs::path base = fs::absolute(xdmf_path).parent_path();
   const std::string h5 = fs::relative(fs::absolute(d.location()), base).string();
   const std::string views_path = xdmf_views_path(xdmf_path);
@@ -96,7 +61,7 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
     if (moving) {
       const Shape shape = source.shape(group + "/world_pos");
       for (int64_t f = 0; f < frames; ++f)
-        v.write_virtual("/world_pos/" + frame_name(f), h5, group + "/world_pos", shape, f, 3);
+        v.write_virtual("/world_pos/" + xdmf_index_name(f), h5, group + "/world_pos", shape, f, 3);
     } else {
       v.write_virtual("/mesh_pos", h5, group + "/mesh_pos", source.shape(group + "/mesh_pos"), -1,
                       3);
@@ -104,8 +69,8 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
     for (const auto& field : attributes) {
       const Shape shape = source.shape(group + "/" + field.name);
       for (int64_t f = 0; f < frames; ++f)
-        v.write_virtual("/" + field.name + "/" + frame_name(f), h5, group + "/" + field.name, shape,
-                        f, view_width(field.width));
+        v.write_virtual("/" + field.name + "/" + xdmf_index_name(f), h5, group + "/" + field.name,
+                        shape, f, view_width(field.width));
     }
     v.close();
   }
@@ -121,13 +86,15 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
       << "<Topology TopologyType=\"" << topology << "\" NumberOfElements=\"" << c << "\"";
     if (mesh.cell_size <= 2) x << " NodesPerElement=\"" << mesh.cell_size << "\"";
     x << ">\n"
-      << item(std::to_string(c) + " " + std::to_string(mesh.cell_size), true, h5, group + "/cells")
+      << xdmf_hdf_item(std::to_string(c) + " " + std::to_string(mesh.cell_size), "Int", 4, h5,
+                       group + "/cells")
       << "</Topology>\n<Geometry GeometryType=\"XYZ\">\n"
-      << item(dims(n, 3), false, views, moving ? "/world_pos/" + frame_name(f) : "/mesh_pos")
+      << xdmf_hdf_item(dims(n, 3), "Float", 4, views,
+                       moving ? "/world_pos/" + xdmf_index_name(f) : "/mesh_pos")
       << "</Geometry>\n";
     for (const char* field : {"node_type", "body_id"})
       x << "<Attribute Name=\"" << field << "\" AttributeType=\"Scalar\" Center=\"Node\">\n"
-        << item(std::to_string(n), true, h5, group + "/" + field) << "</Attribute>\n";
+        << xdmf_hdf_item(std::to_string(n), "Int", 4, h5, group + "/" + field) << "</Attribute>\n";
     for (const auto& field : attributes) {
       const hsize_t width = view_width(field.width);
       x << "<Attribute Name=\"" << xml_escape(field.name) << "\" AttributeType=\""
@@ -135,7 +102,8 @@ void write_trajectory_xdmf(const Dataset& d, int64_t t, const std::string& xdmf_
             : width == 3 ? "Vector"
                          : "Matrix")
         << "\" Center=\"Node\">\n"
-        << item(dims(n, width), false, views, "/" + field.name + "/" + frame_name(f))
+        << xdmf_hdf_item(dims(n, width), "Float", 4, views,
+                         "/" + field.name + "/" + xdmf_index_name(f))
         << "</Attribute>\n";
     }
     x << "</Grid>\n";

@@ -11,6 +11,7 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/runtime.hpp"
+#include "core/xdmf_text.hpp"
 #include "data/mpm/scene_builder.hpp"
 
 namespace bsms::mpm {
@@ -56,12 +57,6 @@ struct FrameRecorder {
   }
 };
 
-std::string frame_name(int64_t frame) {
-  char buf[24];
-  std::snprintf(buf, sizeof buf, "%06lld", static_cast<long long>(frame));
-  return buf;
-}
-
 // DIR/frames.xdmf and the views it reads, DIR/frames.xdmf.h5. As for dataset XDMF
 // (data/dataset/xdmf.hpp, where the readers' constraints are): each frame of a [T, P(, dim)]
 // array of frames.h5 is a virtual dataset of the views file (no copy), positions and velocities
@@ -92,10 +87,10 @@ void write_xdmf(const std::string& dir, const FrameRecorder<Dim>& rec, int64_t p
     for (int64_t p = 0; p < particles; ++p) index[static_cast<size_t>(p)] = static_cast<int32_t>(p);
     v.write("/connectivity", index, {P});
     for (int64_t t = 0; t < frames; ++t) {
-      v.write_virtual("/position/" + frame_name(t), "frames.h5", "/frames/position", {T, P, Dim}, t,
-                      3);
+      v.write_virtual("/position/" + xdmf_index_name(t), "frames.h5", "/frames/position",
+                      {T, P, Dim}, t, 3);
       for (const auto& field : fields)
-        v.write_virtual(std::string("/") + field.name + "/" + frame_name(t), "frames.h5",
+        v.write_virtual(std::string("/") + field.name + "/" + xdmf_index_name(t), "frames.h5",
                         field.dataset, field.vector ? Shape{T, P, Dim} : Shape{T, P}, t,
                         field.vector ? 3 : 0);
     }
@@ -106,11 +101,9 @@ void write_xdmf(const std::string& dir, const FrameRecorder<Dim>& rec, int64_t p
   {
     std::ofstream f(out.temp_path());
     const std::string p = std::to_string(particles);
-    auto item = [&](const std::string& dims, const char* type, int precision,
-                    const std::string& file, const std::string& dataset) {
-      return "          <DataItem Dimensions=\"" + dims + "\" NumberType=\"" + type +
-             "\" Precision=\"" + std::to_string(precision) + "\" Format=\"HDF\">" + file + ":" +
-             dataset + "</DataItem>\n";
+    auto item = [](const std::string& dims, const char* type, int precision,
+                   const std::string& file, const std::string& dataset) {
+      return "          " + xdmf_hdf_item(dims, type, precision, file, dataset);
     };
     f << "<?xml version=\"1.0\" ?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n"
       << "    <Grid Name=\"particles\" GridType=\"Collection\" CollectionType=\"Temporal\">\n";
@@ -122,13 +115,13 @@ void write_xdmf(const std::string& dir, const FrameRecorder<Dim>& rec, int64_t p
         << "\" NodesPerElement=\"1\">\n"
         << item(p, "Int", 4, views, "/connectivity") << "        </Topology>\n"
         << "        <Geometry GeometryType=\"XYZ\">\n"
-        << item(p + " 3", "Float", 4, views, "/position/" + frame_name(t))
+        << item(p + " 3", "Float", 4, views, "/position/" + xdmf_index_name(t))
         << "        </Geometry>\n";
       for (const auto& field : fields)
         f << "        <Attribute Name=\"" << field.name << "\" AttributeType=\""
           << (field.vector ? "Vector" : "Scalar") << "\" Center=\"Node\">\n"
           << item(field.vector ? p + " 3" : p, "Float", 4, views,
-                  std::string("/") + field.name + "/" + frame_name(t))
+                  std::string("/") + field.name + "/" + xdmf_index_name(t))
           << "        </Attribute>\n";
       f << "        <Attribute Name=\"mass\" AttributeType=\"Scalar\" Center=\"Node\">\n"
         << item(p, "Float", 8, "frames.h5", "/particles/mass") << "        </Attribute>\n"
