@@ -8,7 +8,7 @@ MODELS ?= $(RUNS)/demo
 HARDCASES_OUT ?= $(RUNS)/hardcases
 SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-# Debian 12 packages the project needs (DESIGN.md, Dependencies).
+# Debian 12 packages the project needs (docs/design.md "Dependencies").
 DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh-dev gmsh \
         nlohmann-json3-dev libprotobuf-dev libgloo-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
         libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq python3-h5py ccache ninja-build

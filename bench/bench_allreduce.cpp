@@ -1,4 +1,4 @@
-// All-reduce of a model's gradients over c10d/Gloo on loopback, against model size (issue #12).
+// All-reduce of a model's gradients over c10d/Gloo on loopback, against model size.
 //
 //   bench_allreduce [RANKS=2] [REPEATS=60]
 //

@@ -1,4 +1,4 @@
-// Reading DeepMind's MeshGraphNets format (issue 11): record read + CRC32C + decode throughput
+// Reading DeepMind's MeshGraphNets format: record read + CRC32C + decode throughput
 // from a warm page cache, and the training access pattern (3 frames of one field of a random
 // trajectory) against the same data in a bsms HDF5 file.
 //

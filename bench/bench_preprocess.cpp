@@ -1,7 +1,7 @@
 // Bi-stride multilevel building: CloseCenter on structured triangulated rectangles from 10K to 1M
-// nodes (22K and 243K match the original Python figures in DESIGN.md: 0.39 s and 6.4 s), reading a
-// 1M-node .msh written by gmsh (alone, through gmsh and directly, and plus building), and exact
-// MinAve at 50K nodes.
+// nodes (22K and 243K match the original Python figures in docs/design.md: 0.39 s and 6.4 s),
+// reading a 1M-node .msh written by gmsh (alone, through gmsh and directly, and plus building), and
+// exact MinAve at 50K nodes.
 #include <benchmark/benchmark.h>
 #include <gmsh.h>
 #include <omp.h>

@@ -35,11 +35,12 @@ struct EdgeIndex {
   static EdgeIndex empty(int64_t num_nodes);
 };
 
-// Non-parametric transition between level k (fine) and k+1 (coarse), DESIGN.md item 6, as a sparse
-// matrix D [N_coarse, N_fine]: D[c, i] = down_weight of the fine edge i -> pooled[c].
-// Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine = Dᵀ v_coarse.
-// Other hierarchies (models/proximity_multilevel.hpp) may give an up matrix U [N_fine, N_coarse]
-// that is not Dᵀ; they set up_is_down_transpose = false so that gradients use the true adjoints.
+// Non-parametric transition between level k (fine) and k+1 (coarse), docs/design.md "Bi-stride
+// multilevel building" item 6, as a sparse matrix D [N_coarse, N_fine]: D[c, i] = down_weight of
+// the fine edge i -> pooled[c]. Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine
+// = Dᵀ v_coarse. Other hierarchies (models/proximity_multilevel.hpp) may give an up matrix U
+// [N_fine, N_coarse] that is not Dᵀ; they set up_is_down_transpose = false so that gradients use
+// the true adjoints.
 struct LevelTransition {
   int64_t fine_nodes = 0;
   int64_t coarse_nodes = 0;

@@ -1,5 +1,5 @@
 // Bi-stride pooling, second-order adjacency enhancement and transition weights (thesis §4.2,
-// §4.3.2; DESIGN.md "Bi-stride multilevel building").
+// §4.3.2; docs/design.md "Bi-stride multilevel building").
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-// Thinning of coarse levels (issue 15; a deliberate deviation from DESIGN.md's exact A², used by
+// Thinning of coarse levels (a deliberate deviation from docs/design.md's exact A², used by
 // `--levels auto` and on request).
 //
 // Why: bi-stride pooling keeps whole BFS fronts. On a 2D mesh the kept rings thin out radially

@@ -1,5 +1,6 @@
-// Non-parametric transitions between adjacent levels (thesis §4.3.2, DESIGN.md item 6), on plain
-// arrays: the reference the LibTorch transitions in models/ are tested against.
+// Non-parametric transitions between adjacent levels (thesis §4.3.2, docs/design.md "Bi-stride
+// multilevel building" item 6), on plain arrays: the reference the LibTorch transitions in models/
+// are tested against.
 #pragma once
 
 #include <vector>

@@ -1,4 +1,4 @@
-// The multilevel graph file (DESIGN.md "Multilevel graph file"): written atomically, read back
+// The multilevel graph file (docs/design.md "Multilevel graph file"): written atomically, read back
 // with every shape and graph invariant checked.
 #pragma once
 

@@ -1,4 +1,4 @@
-// The bi-stride multilevel graph (thesis §4.2, DESIGN.md "Multilevel graph file").
+// The bi-stride multilevel graph (thesis §4.2, docs/design.md "Multilevel graph file").
 #pragma once
 
 #include <array>
@@ -38,7 +38,7 @@ struct MultilevelGraph {
 };
 
 // Coarse-level thinning (preprocess/edge_thinning.hpp): kAuto thins with `--levels auto` and
-// keeps the exact A² of DESIGN.md when a level count is given; kOn / kOff force it.
+// keeps the exact A² of docs/design.md when a level count is given; kOn / kOff force it.
 enum class Thinning { kAuto, kOn, kOff };
 std::string to_string(Thinning thinning);
 Thinning parse_thinning(const std::string& name);  // "auto" | "on" | "off"; InputError

@@ -30,7 +30,7 @@ run() {
 if [[ $which == preprocess || $which == all ]]; then
   echo "== preprocess: structured triangulated squares (CloseCenter, --levels auto) of 10K..1M nodes;"
   echo "   a 1M-node square written by gmsh (.msh 4.1) read + built; exact MinAve on 50K nodes;"
-  echo "   original Python (DESIGN.md, CloseCenter 2D): 22K nodes 0.39 s, 243K nodes 6.4 s"
+  echo "   original Python (docs/design.md, CloseCenter 2D): 22K nodes 0.39 s, 243K nodes 6.4 s"
   run preprocess | grep -E 'median|Benchmark|^-'
 fi
 if [[ $which == models || $which == all ]]; then

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Data-parallel training throughput on this machine (issue #12).
+# Data-parallel training throughput on this machine.
 #
 #   scripts/bench_distributed.sh BUILD_DIR [STEPS=150] [ROUNDS=2]
 #

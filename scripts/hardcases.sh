@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The hard-case experiments of issue #6, each scripted and reproducible, collected into
+# The hard-case experiments (thesis §4.4.3-4.4.4), each scripted and reproducible, collected into
 # OUT_DIR/report.md with their figures:
 #   1. spatial-proximity failure: 1D steady heat transfer on two sticks head to tail, bi-stride
 #      against a proximity-based coarsening (thesis Fig. 4.6);

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Scene choice for the default family (issue 10, "a default scene that can be learned and is still
+# Scene choice for the default family ("a default scene that can be learned and is still
 # hard"): the same disks2d family generated with one solver or output setting changed at a time
 # (transfer FLIP / APIC, PIC damping through flip_ratio, frame interval), BSMS-GNN trained on each
 # for the same number of steps, rolled out on a test split of 50 trajectories, and one table of

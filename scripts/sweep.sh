@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Model-size sweep on the default scene (issue 10, "model only what a scene needs"): BSMS-GNN at
+# Model-size sweep on the default scene ("model only what a scene needs"): BSMS-GNN at
 # latent 32/64/128 (4 levels) and 3/5 levels (latent 32), MeshGraphNets at latent 32/128, each
 # trained for the same wall-clock budget on one dataset, rolled out on its test split, and one
 # report whose speed-against-error plot holds every point.

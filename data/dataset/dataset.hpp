@@ -1,4 +1,4 @@
-// Datasets of simulated trajectories (DESIGN.md "Dataset"): one HDF5 file per split.
+// Datasets of simulated trajectories (docs/design.md "Dataset"): one HDF5 file per split.
 //
 //   /                        attrs: format="bsms-dataset", version=1, scene (JSON), dim, frame_dt
 //   /trajectories/<000000>/  attrs: seed, parameters (JSON)
@@ -6,7 +6,8 @@
 //       world_pos float32 [T, N, dim], velocity float32 [T, N, dim], stress float32 [T, N]
 //       (optional)
 //
-// The reader also accepts the public datasets as users hold them (DESIGN.md "Public datasets"):
+// The reader also accepts the public datasets as users hold them (docs/design.md "Public
+// datasets"):
 // - DeepMind's MeshGraphNets folder `DIR/meta.json` + `DIR/{split}.tfrecord` (tfrecord.hpp);
 // - the BSMS-GNN conversion to HDF5, a folder `{split}/` holding `{i}.h5`, each with mesh_pos,
 //   cells, node_type and dynamic fields among world_pos, velocity, pressure, density (static

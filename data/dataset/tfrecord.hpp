@@ -1,5 +1,5 @@
-// DeepMind's MeshGraphNets datasets as distributed (DESIGN.md "Public datasets"): a folder with
-// `meta.json` and `{train,valid,test}.tfrecord`.
+// DeepMind's MeshGraphNets datasets as distributed (docs/design.md "Public datasets"): a folder
+// with `meta.json` and `{train,valid,test}.tfrecord`.
 //
 // TFRecord framing, per record: uint64 LE length, uint32 masked CRC32C of those 8 bytes, data,
 // uint32 masked CRC32C of the data. One record is one trajectory, a tf.train.Example whose feature

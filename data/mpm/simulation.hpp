@@ -1,4 +1,4 @@
-// Running a scene end to end and writing its frames (DESIGN.md "Simulation frames"):
+// Running a scene end to end and writing its frames (docs/design.md "Simulation frames"):
 // DIR/frames.h5, DIR/frames.xdmf (XDMF 3 temporal collection of Polyvertex grids for ParaView,
 // reading DIR/frames.xdmf.h5: per-frame views of frames.h5) and DIR/scene.json (the resolved
 // scene).

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where a rollout's centre error enters (issue 10): for every body and predicted step, the change
+"""Where a rollout's centre error enters: for every body and predicted step, the change
 of the error in the body's centre velocity (predicted minus true centroid displacement per frame,
 differenced over consecutive steps: the centre acceleration the model got wrong), attributed to
 what the body was doing in the predicted state the model saw: touching another body (its nodes

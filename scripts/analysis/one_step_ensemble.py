@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Would averaging models help (issue 10)? For two or more one-step rollouts of the same
+"""Would averaging models help? For two or more one-step rollouts of the same
 trajectories (bsms rollout RUN --one-step: every step from the true frames), each body's centre
 error per predicted step (predicted minus true centroid), its RMS per component for each run,
 the correlation of the runs' errors, pair by pair, and the RMS of the error of the runs' average

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""How much of a wall bounce the model's inputs determine (issue 10): for every body and frame t
+"""How much of a wall bounce the model's inputs determine: for every body and frame t
 of a dataset where the body is within --wall of a wall and no other body within --gap, the
 acceleration of the body's centre along the wall's normal (x_{t+1} - 2 x_t + x_{t-1}, m per
 frame²) is fitted by least squares on quadratic features of body-level summaries taken from the

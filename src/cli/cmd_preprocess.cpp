@@ -1,4 +1,5 @@
-// bsms preprocess: mesh -> bi-stride multilevel graph file (DESIGN.md "Multilevel graph file").
+// bsms preprocess: mesh -> bi-stride multilevel graph file (docs/design.md "Multilevel graph
+// file").
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -184,7 +185,7 @@ BSMS_COMMAND(
       sub.add_option("--thinning", options->thinning,
                      "coarse levels: on = keep each node's nearest and farthest A^2 neighbour "
                      "per direction cone once its degree exceeds 2 x cones (8 in 2D, 14 in 3D), "
-                     "off = exact A^2 (DESIGN.md), auto = on with --levels auto (--mesh only)")
+                     "off = exact A^2 (docs/design.md), auto = on with --levels auto (--mesh only)")
           ->check(CLI::IsMember({"auto", "on", "off"}))
           ->default_val("auto");
       sub.add_option("--seed", options->seed, "random seeding: generator seed")

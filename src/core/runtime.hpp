@@ -57,7 +57,7 @@ std::string blas_core_override(const std::string& detected_core, const CpuFeatur
 // - libgomp's wait policy: unless the user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, sets
 //   OMP_WAIT_POLICY=PASSIVE and GOMP_SPINCOUNT=100000: an idle worker spins ~1 ms, then sleeps.
 //   GNU's default (3 ms of spinning, throttled) stole the second core from the original model's
-//   serial work (1.8x slower training, DESIGN.md); pure PASSIVE (no spin) pays a futex wake-up
+//   serial work (1.8x slower training, docs/design.md); pure PASSIVE (no spin) pays a futex wake-up
 //   at every parallel region. Measured on 2 cores, in alternating runs: the 2.6K-node BSMS
 //   training step 271-301 ms (PASSIVE) -> 223-243 ms, inference 68-78 -> 59-64 ms, a 2D UMLS-MPM
 //   step 1.19-1.31 -> 0.81-0.94 ms.

@@ -35,7 +35,7 @@ struct RolloutRequest {
   bool symmetrize = false;
 };
 
-// Returns the metrics written to RUN/rollout/metrics.json (DESIGN.md "Runs").
+// Returns the metrics written to RUN/rollout/metrics.json (docs/design.md "Runs").
 RolloutMetrics rollout(const RolloutRequest& request);
 
 }  // namespace bsms

@@ -1,4 +1,4 @@
-// RUN/rollout/metrics.json (DESIGN.md "Runs") as a type with one writer and one strict reader:
+// RUN/rollout/metrics.json (docs/design.md "Runs") as a type with one writer and one strict reader:
 // what bsms rollout writes is what bsms report and the experiments read. JSON has no NaN, so a
 // non-finite measure is written as null and read back as NaN; an absent figure (std::nullopt) is
 // written as null. A missing or malformed key is an InputError naming the file and the key.

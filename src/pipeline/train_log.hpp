@@ -1,7 +1,7 @@
-// RUN/train_log.csv (DESIGN.md "Runs"): one row per optimizer step, as a type with one writer
+// RUN/train_log.csv (docs/design.md "Runs"): one row per optimizer step, as a type with one writer
 // (bsms train appends rows) and one strict reader (bsms report's loss plots; resume keeps the
 // rows up to the checkpoint). Columns: step, wall_s, loss, valid_loss, valid_baseline, lr; the two
-// validation cells are empty on steps without validation. Logs written before issue 10 have no
+// validation cells are empty on steps without validation. Logs without the
 // valid_baseline column and read back with it NaN.
 #pragma once
 

@@ -1,4 +1,4 @@
-// RUN/train_stats.json (DESIGN.md "Runs") as a type with one writer (bsms train, at the end of
+// RUN/train_stats.json (docs/design.md "Runs") as a type with one writer (bsms train, at the end of
 // each session) and one strict reader (bsms rollout copies its figures into the metrics; a resumed
 // session keeps the first session's median and peak). Non-finite losses are written as null and
 // read back as NaN; a missing or malformed key is an InputError naming the file and the key.

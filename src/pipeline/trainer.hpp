@@ -35,7 +35,7 @@ TrainResult train(const TrainRequest& request);
 // for a launcher to report bad input once instead of once per rank.
 void check_train_request(const TrainRequest& request);
 
-// Files of a run folder (DESIGN.md "Runs").
+// Files of a run folder (docs/design.md "Runs").
 std::string run_config_path(const std::string& run);
 std::string run_checkpoint_path(const std::string& run);
 std::string run_log_path(const std::string& run);

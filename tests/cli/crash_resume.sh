@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Crash safety of `bsms train` (issue #13): kill -9 at pseudo-random moments, then resume.
+# Crash safety of `bsms train`: kill -9 at pseudo-random moments, then resume.
 #
 #   crash_resume.sh BSMS SRC WORK [SEED] [KILLS]
 #

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Data-parallel training over c10d/Gloo on loopback (issue #12), in bounded time.
+# Data-parallel training over c10d/Gloo on loopback, in bounded time.
 #
 #   distributed.sh BSMS CHECKPOINT_DIFF SRC WORK
 #

@@ -1,5 +1,5 @@
-// Small meshes and a brute-force bi-stride builder (DESIGN.md items 1-6, lowest-index seeds) for
-// the model tests, independent of preprocess/ (as models/ is).
+// Small meshes and a brute-force bi-stride builder (docs/design.md "Bi-stride multilevel building"
+// items 1-6, lowest-index seeds) for the model tests, independent of preprocess/ (as models/ is).
 #pragma once
 
 #include <torch/types.h>
@@ -48,7 +48,8 @@ struct ReferenceMultilevel {
   std::vector<ReferenceLevel> levels;  // levels[0] is the mesh graph
 };
 
-// Bi-stride levels with the lowest node of each cluster as seed; weights per DESIGN.md item 6.
+// Bi-stride levels with the lowest node of each cluster as seed; weights per docs/design.md
+// "Bi-stride multilevel building" item 6.
 inline ReferenceMultilevel reference_multilevel(const CsrGraph& mesh_graph, int num_levels) {
   ReferenceMultilevel out;
   out.levels.emplace_back();

@@ -18,7 +18,7 @@
 namespace bsms {
 namespace {
 
-// Mesh edges use mesh X and world x; contact edges world x only (DESIGN.md "Models").
+// Mesh edges use mesh X and world x; contact edges world x only (docs/design.md "Models").
 GraphModelOptions lagrangian_options(int levels, int64_t latent = 16) {
   GraphModelOptions o;
   o.input_size = 3;

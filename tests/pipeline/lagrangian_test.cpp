@@ -1,4 +1,4 @@
-// Features and targets of the Lagrangian adapter (issue 10's recipe): the strain channel, the
+// Features and targets of the Lagrangian adapter: the strain channel, the
 // contact pairs, the noise correction factor, the learning-rate schedule and momentum
 // conservation on free bodies.
 #include "pipeline/lagrangian.hpp"

@@ -54,7 +54,8 @@ TEST(MultilevelTensors, HoldTheGraphsAndTransitionWeights) {
     EXPECT_TRUE(torch::equal(torch::stack({e.senders, e.receivers}, 1), edge_pairs(level.graph)));
     if (k == 0) continue;
     // Down matrix against the file's definition: D[c, i] = down_weight of the fine edge
-    // i -> pooled[c] (DESIGN.md item 6), read off the weights in CSR edge order.
+    // i -> pooled[c] (docs/design.md "Bi-stride multilevel building" item 6), read off the weights
+    // in CSR edge order.
     const CsrGraph& fine = graph.levels[k - 1].graph;
     auto dense = torch::zeros({fine.num_nodes, fine.num_nodes});
     for (int64_t i = 0; i < fine.num_nodes; ++i) {

@@ -215,7 +215,7 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   }
 }
 
-// Deliver-1 check of issue 10: on a case whose answer is known (springs along mesh edges), a
+// On a case whose answer is known (springs along mesh edges), a
 // correct pipeline learns the one-step acceleration almost exactly, on trajectories it did not
 // train on, and the log carries the zero-prediction reference beside the validation loss.
 TEST(KnownAnswer, BsmsLearnsSpringPlateAccelerations) {

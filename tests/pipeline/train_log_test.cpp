@@ -73,7 +73,7 @@ TEST(TrainLogFile, RowsRoundTripAndTornLinesAreLeftOut) {
   EXPECT_FALSE(parse_train_log_row("3,0.2,1.5,,0.4,0.001").has_value());  // baseline, no loss
   EXPECT_FALSE(parse_train_log_row("-3,0.2,1.5,,,0.001").has_value());
 
-  // Before issue 10: no valid_baseline column.
+  // A log without the valid_baseline column.
   const auto old = read_train_log(temp_log("old.csv",
                                            "step,wall_s,loss,valid_loss,lr\n"
                                            "1,0.1,2.0,,0.001\n2,0.2,1.9,0.8,0.001\n"));

@@ -96,7 +96,7 @@ TEST(TransitionWeights, MatchDefinitionAndSumToOne) {
   }
 }
 
-// The properties of DESIGN.md on every level of multilevel graphs of many random meshes.
+// The properties of docs/design.md on every level of multilevel graphs of many random meshes.
 TEST(MultilevelProperties, HoldOnRandomMeshesForEverySeeding) {
   int checked_levels = 0;
   for (Seeding seeding : {Seeding::kCloseCenter, Seeding::kMinAve, Seeding::kRandom}) {

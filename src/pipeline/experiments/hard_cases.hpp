@@ -1,4 +1,4 @@
-// Hard-case experiments on trained runs (issue #6, thesis §4.4.3-4.4.4): zero-shot inference on
+// Hard-case experiments on trained runs (thesis §4.4.3-4.4.4): zero-shot inference on
 // larger meshes, seeding sensitivity at test time (Table 4.8) and long rollouts. Each writes
 // OUT/metrics.json, OUT/<name>.md (a report section whose images are under OUT/plots/) and the
 // rollouts it ran under OUT/rollouts/.

@@ -1,6 +1,6 @@
 // bsms experiment predictability: how far a rollout must drift from the truth on a scene even
-// with perfect physics, given one-step errors of a known size (issue 10: "where a target proves
-// out of reach, show what would reach it").
+// with perfect physics, given one-step errors of a known size (where a target proves out
+// of reach, this shows what would reach it).
 //
 // Each trajectory of a generated dataset (bsms generate: DATA/generate.json names the family, each
 // trajectory's parameters its draw) is solved again by UMLS-MPM, once as stored (the reference)

@@ -1,5 +1,5 @@
 // Scene files: every shipped scene parses; bad scenes give one InputError naming file and key;
-// `simulate_scene` writes the frames file of DESIGN.md and nothing on failure.
+// `simulate_scene` writes the frames file of docs/design.md and nothing on failure.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
