@@ -5,18 +5,20 @@
 // Overlap between bodies: the sum over unordered pairs of cells of different bodies of the area
 // (2-D triangles) or volume (3-D tetrahedra) of their intersection, computed exactly (up to
 // floating-point rounding): Sutherland-Hodgman clipping of one triangle by the other's three
-// half-planes, and in 3-D one tetrahedron clipped by the other's four half-spaces, the kept part
-// carried as a list of tetrahedra (each cut leaves a tetrahedron or a prism split into three), so
-// no polyhedron topology is needed. When no body overlaps itself (a mesh whose cells tile the
-// body) this is the measure of the bodies' pairwise intersections; cells of one body never count.
-// Inverted cells are taken with their unsigned shape.
+// half-planes; in 3-D one tetrahedron clipped by the other's four face half-spaces as a convex
+// polyhedron (Powell and Abel's r3d representation), then its volume from its faces. When no body
+// overlaps itself (a mesh whose cells tile the body) this is the measure of the bodies' pairwise
+// intersections; cells of one body never count. Inverted cells are taken with their unsigned
+// shape.
 //
 // Broad phase: a uniform grid whose spacing is the median extent of the cells' bounding boxes;
 // each cell is listed in every grid cell its box touches and a pair is tested only in the grid
 // cell holding the lowest corner of the two boxes' intersection, so it is tested once. Cells
 // larger than 4 grid spacings (a stretched prediction) are tested against every cell instead.
-// The cost is ~linear in the cells for meshes of similar cell sizes; a frame with one body flung
-// far away coarsens the grid (its size is capped at ~8 x the cells) and costs more.
+// The cost is ~linear in the cells for meshes of similar cell sizes, and grows with the contact
+// area (pairs across it); a frame with one body flung far away coarsens the grid (its size is
+// capped at ~8 x the cells) and costs more. Large frames are measured on the OpenMP threads, with
+// sums taken in a fixed order: the figures do not depend on the thread count.
 #pragma once
 
 #include <array>
