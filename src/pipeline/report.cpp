@@ -63,6 +63,43 @@ std::string model_name(const RolloutMetrics& m) {
                         : std::string());
 }
 
+// A validity measure's worst value, model / truth, or "–" where it does not apply.
+std::string validity_cell(const std::optional<ValidityCurve>& model,
+                          const std::optional<ValidityCurve>& truth) {
+  const auto worst = [](const std::optional<ValidityCurve>& c) {
+    return format_number(c ? c->max : std::nan(""), 2, Notation::kScientific);
+  };
+  if (!model && !truth) return "–";
+  return worst(model) + " / " + worst(truth);
+}
+
+// Physical validity beside inverted cells: overlap between bodies, nodes inside other bodies and
+// outside the walls, prediction against truth.
+void write_validity(std::ostringstream& md, const std::vector<RunData>& runs) {
+  if (std::none_of(runs.begin(), runs.end(),
+                   [](const auto& r) { return r.metrics.validity.has_value(); }))
+    return;
+  md << "\nPhysical validity: the worst step of any test trajectory, predicted / ground truth at "
+        "the same steps (the truth is the reference: bodies the solver pressed together overlap "
+        "at the mesh level too). Overlap: the area (2-D) or volume (3-D) where cells of "
+        "different bodies overlap, as a fraction of all cells'; nodes inside another body and "
+        "outside the walls as fractions of the nodes; outside the walls (m): the farthest node's "
+        "distance beyond them.\n\n"
+     << "| run | inverted cells (max) | overlap between bodies | nodes inside another body | "
+        "outside the walls (m) | nodes outside the walls |\n|---|---|---|---|---|---|\n";
+  for (const auto& r : runs) {
+    const RolloutMetrics& m = r.metrics;
+    if (!m.validity) continue;
+    const ValidityMeasures &model = m.validity->model, &truth = m.validity->truth;
+    md << "| " << fs::path(r.dir).filename().string() << " | "
+       << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | "
+       << validity_cell(model.overlap, truth.overlap) << " | "
+       << validity_cell(model.nodes_in_other_body, truth.nodes_in_other_body) << " | "
+       << validity_cell(model.outside_walls, truth.outside_walls) << " | "
+       << validity_cell(model.nodes_outside_walls, truth.nodes_outside_walls) << " |\n";
+  }
+}
+
 // Steps averaged into each point of the plotted training-loss curve: 0.5 % of the run.
 size_t training_loss_window(size_t steps) {
   return std::max<size_t>(1, steps / 200);
@@ -207,6 +244,54 @@ std::string write_report(const ReportRequest& request) {
         << " using 1:2 with lines lw 2 title " << gnuplot_quoted(runs[r].label);
     g << '\n';
     if (draw_plot(plots / "rmse_over_steps.gp", g.str())) images.push_back("rmse_over_steps.png");
+  }
+  // Overlap between bodies over steps, predicted and true, beside the inverted cells.
+  if (std::any_of(runs.begin(), runs.end(), [](const auto& r) {
+        return r.metrics.validity && r.metrics.validity->model.overlap;
+      })) {
+    std::ostringstream g;
+    g << gnuplot_png_preamble((plots / "validity_over_steps.png").string())
+      << "set title 'Overlap between bodies and inverted cells over steps (test split)'\n"
+         "set xlabel 'predicted step'\nset ylabel 'fraction of the cells (area or volume)'\n"
+         "set key left top\nset grid\nplot ";
+    bool first = true;
+    for (size_t r = 0; r < runs.size(); ++r) {
+      const RolloutMetrics& m = runs[r].metrics;
+      if (!m.validity || !m.validity->model.overlap) continue;
+      const fs::path data = plots / ("validity_" + std::to_string(r) + ".dat");
+      {
+        std::ofstream f(data);  // step, overlap predicted, overlap true, inverted cells
+        const std::vector<double>& model = m.validity->model.overlap->per_step;
+        const std::vector<double> none;
+        const std::vector<double>& truth =
+            m.validity->truth.overlap ? m.validity->truth.overlap->per_step : none;
+        for (size_t s = 0; s < model.size(); ++s) {
+          const double t = s < truth.size() ? truth[s] : std::nan("");
+          const double inv =
+              s < m.inverted_cells_per_step.size() ? m.inverted_cells_per_step[s] : std::nan("");
+          f << s + 1;
+          for (const double value : {model[s], t, inv}) {
+            f << ' ';
+            if (std::isfinite(value))
+              f << value;
+            else
+              f << "NaN";
+          }
+          f << '\n';
+        }
+      }
+      const std::string q = gnuplot_quoted(data.string());
+      g << (first ? "" : ", ") << q << " using 1:2 with lines lw 2 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + ": overlap") << ", " << q
+        << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + ": overlap of the truth") << ", " << q
+        << " using 1:4 with lines lw 1 dt 3 lc " << r + 1 << " title "
+        << gnuplot_quoted(runs[r].label + ": inverted cells");
+      first = false;
+    }
+    g << '\n';
+    if (draw_plot(plots / "validity_over_steps.gp", g.str()))
+      images.push_back("validity_over_steps.png");
   }
   {
     std::ostringstream g;
@@ -365,6 +450,7 @@ std::string write_report(const ReportRequest& request) {
          << " |\n";
     }
   }
+  write_validity(md, runs);
   write_training_cost(md, runs);
   if (std::any_of(runs.begin(), runs.end(),
                   [](const auto& r) { return r.metrics.rmse_all_parts; })) {

@@ -25,6 +25,7 @@
 #include "pipeline/scene_symmetry.hpp"
 #include "pipeline/simulator.hpp"
 #include "pipeline/trainer.hpp"
+#include "pipeline/validity_tally.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
@@ -224,6 +225,11 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   // RMSE-all split into each body's centre, rotation and deformation, model and reference.
   MotionErrorSum model_parts, inertial_parts, rigid_parts;
   TrajectoryRmse per_trajectory;
+  // Physical validity of the predicted and the true frames: overlap between bodies (cells of the
+  // full dimension) and nodes outside the walls (box scenes with walls).
+  const BoxWalls walls = scene_walls(data.scene(), spec.dim);
+  ValidityTally validity(data.mesh(0).cell_size == spec.dim + 1 && spec.dim >= 2 && spec.dim <= 3,
+                         !walls.empty() && spec.dim >= 2 && spec.dim <= 3);
   rollout_outputs::RolloutTally tally;
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
@@ -248,6 +254,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                                  .to(torch::kInt64)
                            : torch::zeros({0, spec.dim + 1}, torch::kInt64);
     const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
+    const std::optional<PhysicalValidity> frame_validity = validity_for_mesh(mesh, spec.dim, walls);
+    validity.start_trajectory();
     std::vector<TrajectoryMesh> mapped_meshes;  // the mesh under each symmetry after the identity
     for (size_t k = 1; k < symmetries.size(); ++k)
       mapped_meshes.push_back(symmetries[k].mesh(mesh));
@@ -323,6 +331,13 @@ RolloutMetrics rollout(const RolloutRequest& request) {
           ((next - seen(f)) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
       curves.add(static_cast<size_t>(f - 1), pos_err, vel_err,
                  inverted_fraction(cells, reference_sign, next, spec.dim));
+      if (frame_validity) {
+        const auto predicted = next.contiguous();
+        const auto target = truth[f + 1].contiguous();
+        validity.add(static_cast<size_t>(f - 1),
+                     frame_validity->measure(predicted.data_ptr<float>()),
+                     frame_validity->measure(target.data_ptr<float>()));
+      }
       model_sq += pos_err;
       ++steps;
     }
@@ -384,6 +399,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     metrics.inverted_cells_per_step.push_back(f);
     metrics.inverted_cells_max = std::max(metrics.inverted_cells_max, f);
   }
+  metrics.validity = validity.metrics();
   rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, run);
   if (!solver_ms_per_frame.empty()) {
     metrics.solver_ms_per_frame = rollout_outputs::median(solver_ms_per_frame);
@@ -407,6 +423,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
         std::cerr << " (95 % over trajectories " << metrics.rmse_all_ratio_interval->lo << "-"
                   << metrics.rmse_all_ratio_interval->hi << ")";
     }
+    if (metrics.validity && metrics.validity->model.overlap && metrics.validity->truth.overlap)
+      std::cerr << ", overlap between bodies at worst " << metrics.validity->model.overlap->max
+                << " (truth " << metrics.validity->truth.overlap->max << ")";
     std::cerr << ", " << metrics.infer_ms_per_step << " ms/step -> "
               << (out_dir / "metrics.json").string() << "\n";
   }

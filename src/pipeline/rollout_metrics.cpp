@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <random>
 #include <stdexcept>
+#include <utility>
 
 #include "pipeline/json_measures.hpp"
 
@@ -118,6 +119,68 @@ std::optional<RatioInterval> interval_from_json(JsonObjectReader& parent, const 
   return i;
 }
 
+Json to_json(const ValidityMeasures& measures) {
+  Json j = Json::object();
+  const std::pair<const char*, const std::optional<ValidityCurve>*> curves[] = {
+      {"overlap", &measures.overlap},
+      {"nodes_in_other_body", &measures.nodes_in_other_body},
+      {"outside_walls", &measures.outside_walls},
+      {"nodes_outside_walls", &measures.nodes_outside_walls}};
+  for (const auto& [key, curve] : curves) {
+    if (!*curve) continue;
+    Json per_step = Json::array(), per_trajectory = Json::array();
+    for (const double v : (*curve)->per_step) per_step.push_back(measure_json(v));
+    for (const double v : (*curve)->per_trajectory) per_trajectory.push_back(measure_json(v));
+    j[key] = {{"per_step", per_step},
+              {"per_trajectory", per_trajectory},
+              {"max", measure_json((*curve)->max)}};
+  }
+  return j;
+}
+
+// {overlap, nodes_in_other_body, outside_walls, nodes_outside_walls}, each optional and each
+// {per_step, per_trajectory, max}.
+ValidityMeasures validity_measures_from_json(JsonObjectReader& parent, const std::string& key) {
+  const Json& value = parent.raw(key);
+  require(value.is_object(), parent.context(key),
+          "an object of validity curves {per_step, per_trajectory, max}");
+  JsonObjectReader r(value, parent.context(key));
+  ValidityMeasures measures;
+  const std::pair<const char*, std::optional<ValidityCurve>*> curves[] = {
+      {"overlap", &measures.overlap},
+      {"nodes_in_other_body", &measures.nodes_in_other_body},
+      {"outside_walls", &measures.outside_walls},
+      {"nodes_outside_walls", &measures.nodes_outside_walls}};
+  for (const auto& [name, curve] : curves) {
+    if (!r.has(name)) continue;
+    const Json& object = r.raw(name);
+    require(object.is_object(), r.context(name), "an object {per_step, per_trajectory, max}");
+    JsonObjectReader c(object, r.context(name));
+    ValidityCurve out;
+    out.per_step = measures_from_json(c.raw("per_step"), c.context("per_step"));
+    out.per_trajectory = measures_from_json(c.raw("per_trajectory"), c.context("per_trajectory"));
+    out.max = read_measure(c, "max");
+    c.finish();
+    *curve = std::move(out);
+  }
+  r.finish();
+  return measures;
+}
+
+// {model, truth}; absent (older files) is none.
+std::optional<PhysicalValidityMetrics> validity_from_json(JsonObjectReader& parent,
+                                                          const std::string& key) {
+  if (!parent.has(key)) return std::nullopt;
+  const Json& value = parent.raw(key);
+  require(value.is_object(), parent.context(key), "an object {model, truth}");
+  JsonObjectReader r(value, parent.context(key));
+  PhysicalValidityMetrics v;
+  v.model = validity_measures_from_json(r, "model");
+  v.truth = validity_measures_from_json(r, "truth");
+  r.finish();
+  return v;
+}
+
 std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
   const Json& list = parent.raw("diverged");
   require(list.is_array(), parent.context("diverged"), "an array of {trajectory, frame}");
@@ -221,6 +284,9 @@ Json to_json(const RolloutMetrics& m) {
     if (m.rmse_all_ratio_interval)
       j["rmse_all_ratio_interval"] = {m.rmse_all_ratio_interval->lo, m.rmse_all_ratio_interval->hi};
     if (m.per_trajectory) j["per_trajectory"] = to_json(*m.per_trajectory);
+    if (m.validity)
+      j["validity"] = {{"model", to_json(m.validity->model)},
+                       {"truth", to_json(m.validity->truth)}};
   }
   j["seeding"] = m.seeding;
   j["infer_ms_per_step"] = m.infer_ms_per_step;
@@ -286,6 +352,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
       m.rmse_all_deformation_rigid = read_measure(r, "rmse_all_deformation_rigid");
     m.rmse_all_ratio_interval = interval_from_json(r, "rmse_all_ratio_interval");
     m.per_trajectory = trajectory_rmse_from_json(r, "per_trajectory");
+    m.validity = validity_from_json(r, "validity");
   }
   m.seeding = r.get<std::string>("seeding");
   m.infer_ms_per_step = r.get<double>("infer_ms_per_step");

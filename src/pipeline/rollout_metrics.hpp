@@ -54,6 +54,31 @@ std::optional<RatioInterval> bootstrap_ratio_interval(const std::vector<int64_t>
                                                       double level = 0.95, int resamples = 4000,
                                                       uint64_t seed = 1);
 
+// One physical-validity measure of a rollout (core/physical_validity.hpp): its mean over the
+// trajectories at each predicted step, each trajectory's largest value over its steps (NaN for
+// one without a predicted step) and the largest of those.
+struct ValidityCurve {
+  std::vector<double> per_step;
+  std::vector<double> per_trajectory;
+  double max = 0.0;
+};
+
+// The validity measures of a set of frames; each is absent where it does not apply: overlap and
+// nodes inside other bodies need cells of the full dimension (triangles, tetrahedra), the walls
+// a box scene with walls.
+struct ValidityMeasures {
+  std::optional<ValidityCurve> overlap;              // fraction of the cells' area / volume
+  std::optional<ValidityCurve> nodes_in_other_body;  // fraction of the nodes
+  std::optional<ValidityCurve> outside_walls;        // the farthest node's distance outside (m)
+  std::optional<ValidityCurve> nodes_outside_walls;  // fraction of the nodes
+};
+
+// Of the predicted frames and of the true frames at the same steps (the reference: bodies the
+// solver pressed together overlap at the mesh level too).
+struct PhysicalValidityMetrics {
+  ValidityMeasures model, truth;
+};
+
 struct DivergedTrajectory {
   int64_t trajectory = 0;
   int64_t frame = 0;  // the first frame with a non-finite prediction
@@ -96,6 +121,9 @@ struct RolloutMetrics {
   // files written before they existed.
   std::optional<TrajectoryRmse> per_trajectory;
   std::optional<RatioInterval> rmse_all_ratio_interval;
+  // Lagrangian in 2-D and 3-D: overlap between bodies and nodes outside the walls ("validity");
+  // none in files written before it existed.
+  std::optional<PhysicalValidityMetrics> validity;
   // Eulerian: the first frame held on the predicted nodes (no model).
   std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
   std::vector<DivergedTrajectory> diverged;

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include "core/error.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
@@ -93,7 +95,10 @@ TEST_F(HardCasesTest, ZeroShotNeedsMeshesFourTimesLarger) {
 }
 
 TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
-  write_split(dir_ / "long", "test", 1, 102);  // 100 predicted steps = 10 x 10
+  // A floor at y = 0 that the falling plate passes through (the data has no contact).
+  const char* floor = R"({"scene": {"background": {"type": "box", "min": [-1, 0], "max": [2, 2]},
+      "boundaries": [{"group": "bottom", "type": "fixed"}]}})";
+  write_split(dir_ / "long", "test", 1, 102, 6, testing::dragged_plate, floor);  // 10 x 10 steps
   write_split(dir_ / "short", "test", 1, 60);
   const Json m =
       long_rollout_experiment(request("long"), (dir_ / "long").string(), (dir_ / "short").string());
@@ -102,6 +107,23 @@ TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
   for (const char* k : {"1H", "2H", "5H", "10H"}) EXPECT_TRUE(run["rmse_at"][k].is_number()) << k;
   EXPECT_EQ(run["rollout"]["rmse_per_step"]["world_pos"].size(), 100u);
   EXPECT_EQ(run["rollout"]["inverted_cells_per_step"].size(), 100u);
+  // Physical validity beside the inverted cells, of the prediction and of the truth: one body
+  // overlaps nothing; the truth falls ~0.3 m below the floor.
+  const Json& validity = run["rollout"]["validity"];
+  ASSERT_TRUE(validity.is_object()) << run["rollout"].dump();
+  EXPECT_EQ(validity["model"]["overlap"]["per_step"].size(), 100u);
+  EXPECT_EQ(validity["truth"]["overlap"]["max"].get<double>(), 0.0);
+  EXPECT_GT(validity["truth"]["outside_walls"]["max"].get<double>(), 0.2);
+  EXPECT_GT(validity["truth"]["nodes_outside_walls"]["max"].get<double>(), 0.5);
+  EXPECT_EQ(validity["model"]["outside_walls"]["per_trajectory"].size(), 1u);
+  {
+    std::ifstream md(dir_ / "long" / "long_rollout.md");
+    const std::string text((std::istreambuf_iterator<char>(md)), {});
+    EXPECT_NE(text.find("| Overlap between bodies (max, model / truth) | Outside the walls"),
+              std::string::npos)
+        << text;
+    EXPECT_NE(text.find(" / 0.00e+00 |"), std::string::npos) << text;  // the truth's overlap
+  }
   EXPECT_EQ(m["hard_runs"].size(), 1u);
   EXPECT_TRUE(fs::exists(dir_ / "long" / "long_rollout.md"));
   EXPECT_TRUE(fs::exists(dir_ / "long" / "plots" / "long_rmse.png"));

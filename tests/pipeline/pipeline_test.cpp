@@ -132,6 +132,15 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_LT(*metrics.rmse_all_deformation_rigid, 0.1 * cv);
   EXPECT_EQ(metrics.inverted_cells_max, 0.0);
   EXPECT_EQ(metrics.inverted_cells_per_step.size(), 28u);
+  // Physical validity: one body in a scene without walls overlaps nothing, predicted or true,
+  // and has no wall measures.
+  ASSERT_TRUE(metrics.validity && metrics.validity->model.overlap &&
+              metrics.validity->truth.overlap);
+  EXPECT_EQ(metrics.validity->model.overlap->max, 0.0);
+  EXPECT_EQ(metrics.validity->truth.nodes_in_other_body->max, 0.0);
+  EXPECT_EQ(metrics.validity->model.overlap->per_step.size(), 28u);
+  EXPECT_EQ(metrics.validity->model.overlap->per_trajectory.size(), 2u);
+  EXPECT_FALSE(metrics.validity->model.outside_walls || metrics.validity->truth.outside_walls);
   EXPECT_EQ(metrics.per_step("world_pos").size(), 28u);
   EXPECT_EQ(metrics.seeding, "minave");
   ASSERT_TRUE(metrics.solver_ms_per_frame && metrics.speedup_vs_solver);
@@ -158,10 +167,15 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
   EXPECT_NE(text.find("| rigid bodies (each body's first shape held) |"), std::string::npos);
   EXPECT_NE(text.find("| run | RMSE-all / constant velocity | 95 % interval |"), std::string::npos)
       << text;
+  EXPECT_NE(text.find("| run | inverted cells (max) | overlap between bodies |"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find(" | 0.00e+00 / 0.00e+00 | 0.00e+00 / 0.00e+00 | – | – |"), std::string::npos)
+      << text;
   // An animation of every frame beside the still frames, each frame titled with its error.
   if (gnuplot_available()) {
     EXPECT_NE(text.find("](plots/rollout_0.png)"), std::string::npos) << text;
     EXPECT_NE(text.find("](plots/rollout_0_animation.gif)"), std::string::npos) << text;
+    EXPECT_NE(text.find("](plots/validity_over_steps.png)"), std::string::npos) << text;
     const fs::path plots = fs::path(report.out) / "plots";
     std::ifstream gif(plots / "rollout_0_animation.gif", std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(gif)),

@@ -90,6 +90,27 @@ double rmse_constant_velocity(const RolloutMetrics& metrics) {
   return metrics.rmse_all_constant_velocity.value_or(std::nan(""));
 }
 
+namespace {
+
+std::string worst_pair(const std::optional<PhysicalValidityMetrics>& v,
+                       std::optional<ValidityCurve> ValidityMeasures::*measure) {
+  if (!v || !(v->model.*measure)) return "–";
+  const auto worst = [&](const ValidityMeasures& m) {
+    return format_number((m.*measure) ? (m.*measure)->max : std::nan(""), 2, Notation::kScientific);
+  };
+  return worst(v->model) + " / " + worst(v->truth);
+}
+
+}  // namespace
+
+std::string overlap_cell(const RolloutMetrics& metrics) {
+  return worst_pair(metrics.validity, &ValidityMeasures::overlap);
+}
+
+std::string outside_walls_cell(const RolloutMetrics& metrics) {
+  return worst_pair(metrics.validity, &ValidityMeasures::outside_walls);
+}
+
 double rmse(const RolloutMetrics& metrics, const char* key) {
   const std::string k = key;
   const std::optional<FieldRmse>& over = k == "rmse_1"    ? metrics.rmse_1

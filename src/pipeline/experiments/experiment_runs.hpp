@@ -42,6 +42,11 @@ RolloutMetrics run_rollout(const HardCaseRequest& request, const RunInfo& run,
 double rmse_constant_velocity(const RolloutMetrics& metrics);
 double rmse(const RolloutMetrics& metrics, const char* key);
 double rmse_at(const RolloutMetrics& metrics, size_t step);
+// Physical validity beside the inverted cells, as table cells "model / truth" of the worst value
+// over steps and trajectories ("–" where it does not apply): the overlap between bodies (fraction
+// of the cells' area or volume) and the farthest node outside the walls (m).
+std::string overlap_cell(const RolloutMetrics& metrics);
+std::string outside_walls_cell(const RolloutMetrics& metrics);
 
 struct Curve {
   std::string label;

@@ -33,7 +33,8 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data 
 
 // Rolls every run out on `long_data` (trajectories longer than the training horizon) and, when
 // `hard_data` is not empty, on harder scenes; reports error growth and stability (diverged
-// trajectories, inverted cells) against the step.
+// trajectories, inverted cells, overlap between bodies and nodes outside the walls beside the
+// ground truth's) against the step.
 Json long_rollout_experiment(const HardCaseRequest& request, const std::string& long_data,
                              const std::string& hard_data);
 

@@ -27,11 +27,12 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
   const fs::path out = make_out(request);
   const SplitStats lng = split_stats(long_data, request.split);
   Json result = {{"experiment", "long-rollout"}, {"long", stats_json(lng)}};
-  std::vector<Curve> rmse_curves, inverted_curves;
+  std::vector<Curve> rmse_curves, inverted_curves, overlap_curves;
   std::ostringstream table;
   table << "| Run | Horizon H (steps) | RMSE at H (m) | at 2H | at 5H | at 10H | RMSE-all | "
-           "Constant velocity RMSE-all | Inverted cells (max) | Diverged |\n"
-           "|---|---|---|---|---|---|---|---|---|---|\n";
+           "Constant velocity RMSE-all | Inverted cells (max) | Overlap between bodies (max, "
+           "model / truth) | Outside the walls (m, max, model / truth) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   Json per_run = Json::array();
   size_t horizon_marker = 0;
   for (const auto& run : runs) {
@@ -58,10 +59,17 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     }
     table << " | " << format_number(rmse(m, "rmse_all"), 3, Notation::kScientific) << " | "
           << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
-          << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | " << m.diverged.size()
-          << " of " << m.num_trajectories << " |\n";
+          << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | " << overlap_cell(m)
+          << " | " << outside_walls_cell(m) << " | " << m.diverged.size() << " of "
+          << m.num_trajectories << " |\n";
     rmse_curves.push_back({run.label, m.per_step("world_pos")});
     inverted_curves.push_back({run.label, m.inverted_cells_per_step});
+    if (m.validity && m.validity->model.overlap) {
+      overlap_curves.push_back({run.label, m.validity->model.overlap->per_step});
+      if (m.validity->truth.overlap)
+        overlap_curves.push_back(
+            {run.label + ", ground truth", m.validity->truth.overlap->per_step, "lines lw 2 dt 2"});
+    }
     per_run.push_back(row);
   }
   result["runs"] = per_run;
@@ -72,6 +80,9 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
               rmse_curves, marks);
   plot_curves(plots, "long_inverted", "Predicted cells turned inside out (fraction)",
               "fraction of cells", false, inverted_curves, marks);
+  if (!overlap_curves.empty())
+    plot_curves(plots, "long_overlap", "Overlap between bodies (fraction of the cells' measure)",
+                "fraction of cells", false, overlap_curves, marks);
 
   std::ostringstream md;
   md << "## Long rollouts and stability\n\n"
@@ -82,10 +93,15 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
              : " without a failure")
      << "). H is the training horizon in predicted steps. Stability: a diverged rollout has a "
         "non-finite state; an inverted cell has its orientation flipped against the first frame "
-        "(the solver stops on any). Constant velocity: extrapolating each trajectory's first "
-        "velocity, the reference a model must beat.\n\n"
+        "(the solver stops on any). Overlap between bodies: the area or volume where cells of "
+        "different bodies overlap, as a fraction of all cells', at the worst step of any "
+        "trajectory, predicted / ground truth (the truth's own mesh-level overlap is the "
+        "reference); outside the walls: the farthest node beyond the box walls. Constant "
+        "velocity: extrapolating each trajectory's first velocity, the reference a model must "
+        "beat.\n\n"
      << table.str() << "\n![long RMSE](plots/long_rmse.png)\n\n"
-     << "![inverted cells](plots/long_inverted.png)\n\n";
+     << "![inverted cells](plots/long_inverted.png)\n\n"
+     << (overlap_curves.empty() ? "" : "![overlap between bodies](plots/long_overlap.png)\n\n");
 
   if (!hard_data.empty()) {
     const SplitStats hard = split_stats(hard_data, request.split);
@@ -94,8 +110,9 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     std::ostringstream hard_table;
     hard_table
         << "| Run | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | Constant velocity RMSE-all (m) "
-           "| Own test split RMSE-all (m) | Inverted cells (max) | Diverged |\n"
-           "|---|---|---|---|---|---|---|---|\n";
+           "| Own test split RMSE-all (m) | Inverted cells (max) | Overlap between bodies (max, "
+           "model / truth) | Outside the walls (m, max, model / truth) | Diverged |\n"
+           "|---|---|---|---|---|---|---|---|---|---|\n";
     Json hard_runs = Json::array();
     for (const auto& run : runs) {
       const RolloutMetrics m = run_rollout(request, run, hard_data, "", "hard");
@@ -107,7 +124,8 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
                  << format_number(rmse_constant_velocity(m), 3, Notation::kScientific) << " | "
                  << format_number(rmse(own, "rmse_all"), 3, Notation::kScientific) << " | "
                  << format_number(m.inverted_cells_max, 4, Notation::kFixed) << " | "
-                 << m.diverged.size() << " of " << m.num_trajectories << " |\n";
+                 << overlap_cell(m) << " | " << outside_walls_cell(m) << " | " << m.diverged.size()
+                 << " of " << m.num_trajectories << " |\n";
       hard_curves.push_back({run.label + ", hard scenes", m.per_step("world_pos")});
       hard_curves.push_back(
           {run.label + ", own test split", own.per_step("world_pos"), "lines lw 2 dt 2"});

@@ -30,8 +30,9 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
   std::vector<Curve> curves;
   std::ostringstream table;
   table << "| Run | Test set | Nodes (mean) | RMSE-1 (m) | RMSE-50 (m) | RMSE-all (m) | "
-           "Constant velocity RMSE-all (m) | Infer ms/step | Inverted cells (max) |\n"
-           "|---|---|---|---|---|---|---|---|---|\n";
+           "Constant velocity RMSE-all (m) | Infer ms/step | Inverted cells (max) | Overlap "
+           "between bodies (max, model / truth) | Outside the walls (m, max, model / truth) |\n"
+           "|---|---|---|---|---|---|---|---|---|---|---|\n";
   int64_t train_max = 0;
   Json per_run = Json::array();
   std::vector<std::pair<RunInfo, std::pair<double, double>>> rmse_all;  // own, larger meshes
@@ -65,7 +66,8 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
             << format_number(rmse(*m, "rmse_all"), 3, Notation::kScientific) << " | "
             << format_number(rmse_constant_velocity(*m), 3, Notation::kScientific) << " | "
             << format_number(m->infer_ms_per_step, 1, Notation::kFixed) << " | "
-            << format_number(m->inverted_cells_max, 4, Notation::kFixed) << " |\n";
+            << format_number(m->inverted_cells_max, 4, Notation::kFixed) << " | "
+            << overlap_cell(*m) << " | " << outside_walls_cell(*m) << " |\n";
       curves.push_back({run.label + (is_big ? ", larger meshes (zero-shot)" : ", own test split"),
                         m->per_step("world_pos"), is_big ? "lines lw 2" : "lines lw 2 dt 2"});
     }

@@ -1,0 +1,628 @@
+#include "core/physical_validity.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+namespace bsms {
+
+namespace {
+
+using P2 = std::array<double, 2>;
+using P3 = std::array<double, 3>;
+
+// Twice the signed area of (o, a, b): > 0 when counter-clockwise.
+double cross2(const P2& o, const P2& a, const P2& b) {
+  return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+}
+
+P3 sub(const P3& a, const P3& b) {
+  return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+}
+P3 cross(const P3& a, const P3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double dot(const P3& a, const P3& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+// Six times the signed volume of (a, b, c, d).
+double orient3(const P3& a, const P3& b, const P3& c, const P3& d) {
+  return dot(cross(sub(b, a), sub(c, a)), sub(d, a));
+}
+
+Triangle2 counter_clockwise(Triangle2 t) {
+  if (cross2(t[0], t[1], t[2]) < 0) std::swap(t[1], t[2]);
+  return t;
+}
+Tetrahedron3 positive(Tetrahedron3 t) {
+  if (orient3(t[0], t[1], t[2], t[3]) < 0) std::swap(t[2], t[3]);
+  return t;
+}
+
+// The point where the segment from p (side value sp) to q (sq) crosses side 0; sp and sq have
+// opposite signs (one may be 0), so the denominator is not 0.
+template <class P>
+P crossing(const P& p, const P& q, double sp, double sq) {
+  const double t = sp / (sp - sq);
+  P out;
+  for (size_t a = 0; a < out.size(); ++a) out[a] = p[a] + t * (q[a] - p[a]);
+  return out;
+}
+
+// Both counter-clockwise and of positive area.
+double clipped_area(const Triangle2& a, const Triangle2& b) {
+  // A convex polygon cut by a half-plane gains at most one vertex: 3 -> 6 after three cuts.
+  P2 buffers[2][8];
+  int n = 3;
+  for (int i = 0; i < 3; ++i) buffers[0][i] = a[i];
+  int cur = 0;
+  for (int e = 0; e < 3; ++e) {
+    const P2& p = b[e];
+    const P2& q = b[(e + 1) % 3];
+    const P2* in = buffers[cur];
+    P2* out = buffers[1 - cur];
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      const P2& now = in[i];
+      const P2& before = in[(i + n - 1) % n];
+      const double s_now = cross2(p, q, now), s_before = cross2(p, q, before);
+      if (s_now >= 0) {
+        if (s_before < 0) out[m++] = crossing(before, now, s_before, s_now);
+        out[m++] = now;
+      } else if (s_before >= 0) {
+        out[m++] = crossing(before, now, s_before, s_now);
+      }
+    }
+    n = m;
+    cur = 1 - cur;
+    if (n < 3) return 0.0;
+  }
+  const P2* poly = buffers[cur];
+  double twice = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const P2& p = poly[i];
+    const P2& q = poly[(i + 1) % n];
+    twice += p[0] * q[1] - p[1] * q[0];
+  }
+  return std::max(0.0, 0.5 * twice);
+}
+
+// A half-space n . x >= w.
+struct HalfSpace {
+  P3 normal;
+  double offset = 0.0;
+  double side(const P3& x) const { return dot(normal, x) - offset; }
+};
+
+// The inner half-spaces of a tetrahedron's faces (face i opposite vertex i).
+void face_planes(const Tetrahedron3& t, HalfSpace* planes) {
+  for (int i = 0; i < 4; ++i) {
+    const P3& o = t[(i + 1) % 4];
+    P3 n = cross(sub(t[(i + 2) % 4], o), sub(t[(i + 3) % 4], o));
+    if (dot(n, sub(t[i], o)) < 0) n = {-n[0], -n[1], -n[2]};
+    planes[i] = {n, dot(n, o)};
+  }
+}
+
+// A convex polyhedron in the representation of Powell and Abel's r3d (J. Comput. Phys. 297,
+// 2015): every vertex has exactly three neighbours, in a cyclic order that makes the faces walks
+// (arrive at a vertex from neighbour j, leave to neighbour j + 1). A plane cut puts a vertex on
+// every cut edge and links the new vertices by walking the faces, so no face lists are kept and
+// a vertex on the plane or a zero-length edge needs no special case. A tetrahedron cut by four
+// planes has at most 8 faces, so 2 x 8 - 4 = 12 vertices, plus at most 18 cut edges while a cut
+// is under way.
+class Polyhedron {
+ public:
+  explicit Polyhedron(const Tetrahedron3& t) : count_(4) {
+    const int links[4][3] = {{1, 3, 2}, {2, 3, 0}, {0, 3, 1}, {1, 2, 0}};
+    for (int v = 0; v < 4; ++v) {
+      position_[v] = t[v];
+      for (int k = 0; k < 3; ++k) next_[v][k] = links[v][k];
+    }
+  }
+
+  // Keeps the part where plane.side(x) >= 0; false when nothing is left.
+  bool clip(const HalfSpace& plane) {
+    double side[kCapacity];
+    bool cut[kCapacity];
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int v = 0; v < count_; ++v) {
+      side[v] = plane.side(position_[v]);
+      cut[v] = side[v] < 0;
+      lo = std::min(lo, side[v]);
+      hi = std::max(hi, side[v]);
+    }
+    if (lo >= 0) return true;
+    if (hi <= 0) {
+      count_ = 0;
+      return false;
+    }
+    const int old = count_;
+    for (int v = 0; v < old; ++v) {
+      if (cut[v]) continue;
+      for (int k = 0; k < 3; ++k) {
+        const int w = next_[v][k];
+        if (!cut[w] || count_ >= kCapacity) continue;
+        const int u = count_++;
+        position_[u] = crossing(position_[v], position_[w], side[v], side[w]);
+        next_[u][0] = v;
+        next_[u][1] = next_[u][2] = -1;
+        next_[v][k] = u;
+        cut[u] = false;
+      }
+    }
+    // Each new vertex walks its face (through kept vertices, whose links to cut ones now end at
+    // new vertices) to the next new vertex: the two are joined along the new face.
+    for (int u = old; u < count_; ++u) {
+      int at = u, to = next_[u][0];
+      do {
+        int j = 0;
+        while (j < 2 && next_[to][j] != at) ++j;
+        at = to;
+        to = next_[at][(j + 1) % 3];
+      } while (at < old);
+      next_[u][2] = at;
+      next_[at][1] = u;
+    }
+    int index[kCapacity];
+    int kept = 0;
+    for (int v = 0; v < count_; ++v) {
+      if (cut[v]) continue;
+      position_[kept] = position_[v];
+      for (int k = 0; k < 3; ++k) next_[kept][k] = next_[v][k];
+      index[v] = kept++;
+    }
+    count_ = kept;
+    for (int v = 0; v < count_; ++v)
+      for (int k = 0; k < 3; ++k) next_[v][k] = index[next_[v][k]];
+    return count_ > 0;
+  }
+
+  // Each face walked once and fanned from its first vertex, the fans' tetrahedra taken from the
+  // first vertex of the polyhedron (not the origin: less cancellation).
+  double volume() const {
+    if (count_ < 4) return 0.0;
+    bool walked[kCapacity][3] = {};
+    const P3& apex = position_[0];
+    double six = 0.0;
+    for (int start = 0; start < count_; ++start)
+      for (int k0 = 0; k0 < 3; ++k0) {
+        if (walked[start][k0]) continue;
+        walked[start][k0] = true;
+        int at = next_[start][k0], from = start;
+        for (;;) {
+          int j = 0;
+          while (j < 2 && next_[at][j] != from) ++j;
+          const int k = (j + 1) % 3;
+          walked[at][k] = true;
+          const int to = next_[at][k];
+          if (to == start) break;
+          six += orient3(apex, position_[start], position_[at], position_[to]);
+          from = at;
+          at = to;
+        }
+      }
+    return std::fabs(six) / 6.0;
+  }
+
+ private:
+  static constexpr int kCapacity = 40;
+  P3 position_[kCapacity];
+  int next_[kCapacity][3];
+  int count_;
+};
+
+// Of positive volume, with their faces' inner half-spaces. A face plane of either that leaves
+// the other on its outer side separates them; planes of b that leave a on their inner side need
+// no cut.
+double clipped_volume(const Tetrahedron3& a, const HalfSpace* a_planes, const Tetrahedron3& b,
+                      const HalfSpace* b_planes) {
+  for (int i = 0; i < 4; ++i) {
+    const HalfSpace& plane = a_planes[i];
+    if (plane.side(b[0]) <= 0 && plane.side(b[1]) <= 0 && plane.side(b[2]) <= 0 &&
+        plane.side(b[3]) <= 0)
+      return 0.0;
+  }
+  const HalfSpace* cutting[4];
+  int num_cutting = 0;
+  for (int i = 0; i < 4; ++i) {
+    const HalfSpace& plane = b_planes[i];
+    bool any_in = false, any_out = false;
+    for (const P3& v : a) {
+      const double s = plane.side(v);
+      any_in = any_in || s > 0;
+      any_out = any_out || s < 0;
+    }
+    if (!any_in) return 0.0;
+    if (any_out) cutting[num_cutting++] = &plane;
+  }
+  if (num_cutting == 0) return std::fabs(orient3(a[0], a[1], a[2], a[3])) / 6.0;
+  Polyhedron part(a);
+  for (int c = 0; c < num_cutting; ++c)
+    if (!part.clip(*cutting[c])) return 0.0;
+  return part.volume();
+}
+
+// Frames with fewer cells are measured on one thread (the threads would cost more than they
+// save).
+constexpr int64_t kParallelCells = 2000;
+
+}  // namespace
+
+double triangle_area(const Triangle2& t) {
+  return 0.5 * std::fabs(cross2(t[0], t[1], t[2]));
+}
+
+double tetrahedron_volume(const Tetrahedron3& t) {
+  return std::fabs(orient3(t[0], t[1], t[2], t[3])) / 6.0;
+}
+
+double triangle_overlap_area(const Triangle2& a, const Triangle2& b) {
+  if (!(triangle_area(a) > 0) || !(triangle_area(b) > 0)) return 0.0;
+  return clipped_area(counter_clockwise(a), counter_clockwise(b));
+}
+
+double tetrahedron_overlap_volume(const Tetrahedron3& a, const Tetrahedron3& b) {
+  if (!(tetrahedron_volume(a) > 0) || !(tetrahedron_volume(b) > 0)) return 0.0;
+  HalfSpace a_planes[4], b_planes[4];
+  face_planes(a, a_planes);
+  face_planes(b, b_planes);
+  return clipped_volume(a, a_planes, b, b_planes);
+}
+
+bool strictly_inside(const Triangle2& t, const std::array<double, 2>& p) {
+  const Triangle2 c = counter_clockwise(t);
+  return cross2(c[0], c[1], p) > 0 && cross2(c[1], c[2], p) > 0 && cross2(c[2], c[0], p) > 0;
+}
+
+bool strictly_inside(const Tetrahedron3& t, const std::array<double, 3>& p) {
+  const Tetrahedron3 c = positive(t);
+  // The barycentric coordinate of vertex i has the sign of the volume with p in its place.
+  for (int i = 0; i < 4; ++i) {
+    Tetrahedron3 with = c;
+    with[i] = p;
+    if (!(orient3(with[0], with[1], with[2], with[3]) > 0)) return false;
+  }
+  return true;
+}
+
+double FrameValidity::overlap_fraction() const {
+  return cell_measure > 0 ? overlap_measure / cell_measure
+                          : (std::isnan(overlap_measure) ? overlap_measure : 0.0);
+}
+
+double FrameValidity::nodes_in_other_body_fraction() const {
+  return num_nodes > 0 ? static_cast<double>(nodes_in_other_body) / static_cast<double>(num_nodes)
+                       : 0.0;
+}
+
+double FrameValidity::nodes_outside_walls_fraction() const {
+  return num_nodes > 0 ? static_cast<double>(nodes_outside_walls) / static_cast<double>(num_nodes)
+                       : 0.0;
+}
+
+PhysicalValidity::PhysicalValidity(int dim, std::vector<int32_t> cells,
+                                   std::vector<int32_t> body_id, int64_t num_nodes, BoxWalls walls)
+    : dim_(dim),
+      cells_(std::move(cells)),
+      node_body_(std::move(body_id)),
+      num_nodes_(num_nodes),
+      walls_(std::move(walls)) {
+  if (dim_ != 2 && dim_ != 3)
+    throw std::invalid_argument("PhysicalValidity: dimension 2 or 3 (triangles or tetrahedra)");
+  const size_t k = static_cast<size_t>(dim_ + 1);
+  if (cells_.size() % k != 0)
+    throw std::invalid_argument("PhysicalValidity: cells of dim + 1 nodes");
+  if (num_nodes_ < 0 || num_nodes_ > std::numeric_limits<int32_t>::max())
+    throw std::invalid_argument("PhysicalValidity: node count out of range");
+  for (const int32_t i : cells_)
+    if (i < 0 || i >= num_nodes_)
+      throw std::invalid_argument("PhysicalValidity: a cell's node index is out of range");
+  if (node_body_.empty()) node_body_.assign(static_cast<size_t>(num_nodes_), 0);
+  if (static_cast<int64_t>(node_body_.size()) != num_nodes_)
+    throw std::invalid_argument("PhysicalValidity: one body id per node");
+  if (!walls_.empty() &&
+      (static_cast<int>(walls_.lo.size()) != dim_ || static_cast<int>(walls_.hi.size()) != dim_))
+    throw std::invalid_argument("PhysicalValidity: walls have one lower and upper side per axis");
+  cell_body_.resize(cells_.size() / k);
+  for (size_t c = 0; c < cell_body_.size(); ++c) cell_body_[c] = node_body_[cells_[c * k]];
+  several_bodies_ = std::any_of(node_body_.begin(), node_body_.end(),
+                                [&](int32_t b) { return b != node_body_.front(); });
+}
+
+FrameValidity PhysicalValidity::measure(const float* x) const {
+  return measure_frame(x);
+}
+
+FrameValidity PhysicalValidity::measure(const double* x) const {
+  return measure_frame(x);
+}
+
+template <class T>
+FrameValidity PhysicalValidity::measure_frame(const T* x) const {
+  FrameValidity v;
+  v.num_nodes = num_nodes_;
+  const int d = dim_, k = dim_ + 1;
+  const int64_t num_coords = num_nodes_ * d;
+  for (int64_t i = 0; i < num_coords; ++i)
+    if (!std::isfinite(static_cast<double>(x[i]))) {
+      const double nan = std::nan("");
+      v.cell_measure = v.overlap_measure = v.outside_walls_max = nan;
+      return v;
+    }
+
+  // Walls: the distance to the walled region (a box, open where a side has no wall).
+  if (!walls_.empty())
+    for (int64_t i = 0; i < num_nodes_; ++i) {
+      double squared = 0.0;
+      for (int a = 0; a < d; ++a) {
+        const double p = static_cast<double>(x[i * d + a]);
+        const double lo = walls_.lo[a], hi = walls_.hi[a];
+        const double beyond = std::max(std::isnan(lo) ? 0.0 : lo - p, 0.0) +
+                              std::max(std::isnan(hi) ? 0.0 : p - hi, 0.0);
+        squared += beyond * beyond;
+      }
+      if (squared > 0) {
+        ++v.nodes_outside_walls;
+        v.outside_walls_max = std::max(v.outside_walls_max, std::sqrt(squared));
+      }
+    }
+
+  // Cells: vertices (triangles counter-clockwise), bounding boxes, unsigned measures, and in
+  // 3-D the faces' inner half-spaces. Sums are taken in cell order so that the figures do not
+  // depend on the thread count.
+  const int64_t num_cells = this->num_cells();
+  std::vector<double> vertex(static_cast<size_t>(num_cells * k * d));
+  std::vector<double> box(static_cast<size_t>(num_cells * 2 * d));  // lo[d], hi[d]
+  std::vector<double> measure(static_cast<size_t>(num_cells));
+  std::vector<HalfSpace> planes(d == 3 ? static_cast<size_t>(num_cells * 4) : 0);
+  auto vertex_of = [&](int64_t c, int j) { return &vertex[static_cast<size_t>((c * k + j) * d)]; };
+  auto lo_of = [&](int64_t c) { return &box[static_cast<size_t>(c * 2 * d)]; };
+  auto hi_of = [&](int64_t c) { return &box[static_cast<size_t>(c * 2 * d + d)]; };
+  auto triangle = [&](int64_t c) {
+    Triangle2 t;
+    for (int j = 0; j < 3; ++j) t[j] = {vertex_of(c, j)[0], vertex_of(c, j)[1]};
+    return t;
+  };
+  auto tetrahedron = [&](int64_t c) {
+    Tetrahedron3 t;
+    for (int j = 0; j < 4; ++j) t[j] = {vertex_of(c, j)[0], vertex_of(c, j)[1], vertex_of(c, j)[2]};
+    return t;
+  };
+#pragma omp parallel for schedule(static) if (num_cells >= kParallelCells)
+  for (int64_t c = 0; c < num_cells; ++c) {
+    double* lo = lo_of(c);
+    double* hi = hi_of(c);
+    for (int a = 0; a < d; ++a) {
+      lo[a] = std::numeric_limits<double>::infinity();
+      hi[a] = -lo[a];
+    }
+    for (int j = 0; j < k; ++j) {
+      const int64_t node = cells_[static_cast<size_t>(c * k + j)];
+      double* p = vertex_of(c, j);
+      for (int a = 0; a < d; ++a) {
+        p[a] = static_cast<double>(x[node * d + a]);
+        lo[a] = std::min(lo[a], p[a]);
+        hi[a] = std::max(hi[a], p[a]);
+      }
+    }
+    if (d == 2) {
+      const Triangle2 t = triangle(c);
+      const double twice = cross2(t[0], t[1], t[2]);
+      measure[static_cast<size_t>(c)] = 0.5 * std::fabs(twice);
+      if (twice < 0)
+        for (int a = 0; a < d; ++a) std::swap(vertex_of(c, 1)[a], vertex_of(c, 2)[a]);
+    } else {
+      const Tetrahedron3 t = tetrahedron(c);
+      measure[static_cast<size_t>(c)] = tetrahedron_volume(t);
+      face_planes(t, &planes[static_cast<size_t>(c * 4)]);
+    }
+  }
+  for (const double m : measure) v.cell_measure += m;
+  if (!several_bodies_ || num_cells == 0) return v;
+
+  // The exact measure of two cells' intersection.
+  auto overlap = [&](int64_t c1, int64_t c2) {
+    if (!(measure[static_cast<size_t>(c1)] > 0) || !(measure[static_cast<size_t>(c2)] > 0))
+      return 0.0;
+    if (d == 2) return clipped_area(triangle(c1), triangle(c2));
+    return clipped_volume(tetrahedron(c1), &planes[static_cast<size_t>(c1 * 4)], tetrahedron(c2),
+                          &planes[static_cast<size_t>(c2 * 4)]);
+  };
+  // Boxes whose intersection has a positive measure (touching cells cannot overlap).
+  auto boxes_overlap = [&](int64_t c1, int64_t c2) {
+    const double *lo1 = lo_of(c1), *hi1 = hi_of(c1), *lo2 = lo_of(c2), *hi2 = hi_of(c2);
+    for (int a = 0; a < d; ++a)
+      if (!(std::max(lo1[a], lo2[a]) < std::min(hi1[a], hi2[a]))) return false;
+    return true;
+  };
+  auto box_holds = [&](int64_t c, const double* p) {
+    const double *lo = lo_of(c), *hi = hi_of(c);
+    for (int a = 0; a < d; ++a)
+      if (!(lo[a] < p[a] && p[a] < hi[a])) return false;
+    return true;
+  };
+  auto node_inside = [&](int64_t c, const double* p) {
+    if (d == 2) return strictly_inside(triangle(c), {p[0], p[1]});
+    return strictly_inside(tetrahedron(c), {p[0], p[1], p[2]});
+  };
+  auto body_of = [&](int64_t c) { return cell_body_[static_cast<size_t>(c)]; };
+
+  // Grid spacing: the median extent of the cells' boxes; cells beyond 4 spacings are "large".
+  std::vector<double> extent(static_cast<size_t>(num_cells));
+  for (int64_t c = 0; c < num_cells; ++c) {
+    double e = 0.0;
+    for (int a = 0; a < d; ++a) e = std::max(e, hi_of(c)[a] - lo_of(c)[a]);
+    extent[static_cast<size_t>(c)] = e;
+  }
+  double spacing;
+  {
+    std::vector<double> sorted = extent;
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(num_cells / 2),
+                     sorted.end());
+    spacing = sorted[static_cast<size_t>(num_cells / 2)];
+    if (!(spacing > 0)) spacing = *std::max_element(extent.begin(), extent.end());
+    if (!(spacing > 0)) return v;  // every cell is a point: nothing has a measure or an inside
+  }
+  std::vector<int64_t> large;
+  std::vector<char> is_large(static_cast<size_t>(num_cells), 0);
+  double dlo[3] = {0, 0, 0}, dhi[3] = {0, 0, 0};
+  for (int a = 0; a < d; ++a) {
+    dlo[a] = std::numeric_limits<double>::infinity();
+    dhi[a] = -dlo[a];
+  }
+  for (int64_t c = 0; c < num_cells; ++c) {
+    if (extent[static_cast<size_t>(c)] > 4 * spacing) {
+      large.push_back(c);
+      is_large[static_cast<size_t>(c)] = 1;
+      continue;
+    }
+    for (int a = 0; a < d; ++a) {
+      dlo[a] = std::min(dlo[a], lo_of(c)[a]);
+      dhi[a] = std::max(dhi[a], hi_of(c)[a]);
+    }
+  }
+  // At most ~8 grid cells per mesh cell: a scene spread far apart gets a coarser grid.
+  const double max_grid = 8.0 * static_cast<double>(num_cells) + 64.0;
+  int64_t size[3] = {1, 1, 1};
+  for (;;) {
+    double total = 1.0, along[3] = {1, 1, 1};
+    for (int a = 0; a < d; ++a) {
+      along[a] = std::floor((dhi[a] - dlo[a]) / spacing) + 1.0;
+      total *= along[a];
+    }
+    if (total <= max_grid) {
+      for (int a = 0; a < d; ++a) size[a] = static_cast<int64_t>(along[a]);
+      break;
+    }
+    if (!std::isfinite(spacing)) break;  // coordinates too far apart for any grid: one cell
+    spacing *= std::max(1.01, std::pow(total / max_grid, 1.0 / d));
+  }
+  const int64_t grid_cells = size[0] * size[1] * size[2];
+  // Grid coordinate of p along axis a, clamped to the grid (monotone in p, so a box's range of
+  // coordinates holds those of every point in it).
+  auto coordinate = [&](double p, int a) -> int64_t {
+    const double t = std::floor((p - dlo[a]) / spacing);
+    if (!(t > 0)) return 0;
+    if (t >= static_cast<double>(size[a] - 1)) return size[a] - 1;
+    return static_cast<int64_t>(t);
+  };
+  auto flat = [&](const int64_t* g) { return (g[0] * size[1] + g[1]) * size[2] + g[2]; };
+  // The grid cells a box touches, as ranges; the first corner kept per cell.
+  std::vector<int64_t> first_of(static_cast<size_t>(num_cells * 3), 0);
+  auto for_each_touched = [&](int64_t c, auto&& visit) {
+    int64_t first[3] = {0, 0, 0}, last[3] = {0, 0, 0}, g[3];
+    for (int a = 0; a < d; ++a) {
+      first[a] = first_of[static_cast<size_t>(c * 3 + a)] = coordinate(lo_of(c)[a], a);
+      last[a] = coordinate(hi_of(c)[a], a);
+    }
+    for (g[0] = first[0]; g[0] <= last[0]; ++g[0])
+      for (g[1] = first[1]; g[1] <= last[1]; ++g[1])
+        for (g[2] = first[2]; g[2] <= last[2]; ++g[2]) visit(flat(g));
+  };
+  // Counting sort of (grid cell, mesh cell) entries.
+  std::vector<int64_t> start(static_cast<size_t>(grid_cells + 1), 0);
+  for (int64_t c = 0; c < num_cells; ++c)
+    if (!is_large[static_cast<size_t>(c)])
+      for_each_touched(c, [&](int64_t g) { ++start[static_cast<size_t>(g + 1)]; });
+  for (int64_t g = 0; g < grid_cells; ++g)
+    start[static_cast<size_t>(g + 1)] += start[static_cast<size_t>(g)];
+  std::vector<int32_t> entries(static_cast<size_t>(start.back()));
+  {
+    std::vector<int64_t> fill(start.begin(), start.end() - 1);
+    for (int64_t c = 0; c < num_cells; ++c)
+      if (!is_large[static_cast<size_t>(c)])
+        for_each_touched(c, [&](int64_t g) {
+          entries[static_cast<size_t>(fill[static_cast<size_t>(g)]++)] = static_cast<int32_t>(c);
+        });
+  }
+
+  // Pairs of different bodies in one grid cell, each tested in the grid cell holding the lowest
+  // corner of the boxes' intersection: the coordinate of a maximum is the maximum of the
+  // coordinates (coordinate() is monotone), so the cells' first corners decide. Each grid cell's
+  // sum is kept apart and the sums added in grid order (a result independent of the threads).
+  std::vector<double> grid_overlap(static_cast<size_t>(grid_cells), 0.0);
+  std::vector<int64_t> grid_pairs(static_cast<size_t>(grid_cells), 0);
+#pragma omp parallel if (num_cells >= kParallelCells)
+  {
+    std::vector<int32_t> list;
+#pragma omp for schedule(dynamic, 64)
+    for (int64_t g = 0; g < grid_cells; ++g) {
+      const int32_t* begin = entries.data() + start[static_cast<size_t>(g)];
+      const int32_t* end = entries.data() + start[static_cast<size_t>(g + 1)];
+      if (end - begin < 2) continue;
+      // Most grid cells lie inside one body.
+      if (std::all_of(begin + 1, end, [&](int32_t c) { return body_of(c) == body_of(*begin); }))
+        continue;
+      const int64_t g3[3] = {g / (size[1] * size[2]), (g / size[2]) % size[1], g % size[2]};
+      // Grouped by body, so that only pairs of different bodies are enumerated.
+      list.assign(begin, end);
+      std::stable_sort(list.begin(), list.end(),
+                       [&](int32_t a, int32_t b) { return body_of(a) < body_of(b); });
+      const size_t count = list.size();
+      double sum = 0.0;
+      int64_t pairs = 0;
+      size_t group_end = 0;
+      for (size_t i = 0; i < count; ++i) {
+        if (i == group_end)
+          while (group_end < count && body_of(list[group_end]) == body_of(list[i])) ++group_end;
+        const int64_t c1 = list[i];
+        for (size_t j = group_end; j < count; ++j) {
+          const int64_t c2 = list[j];
+          if (!boxes_overlap(c1, c2)) continue;
+          bool here = true;
+          for (int a = 0; a < d && here; ++a)
+            here = std::max(first_of[static_cast<size_t>(c1 * 3 + a)],
+                            first_of[static_cast<size_t>(c2 * 3 + a)]) == g3[a];
+          if (!here) continue;
+          ++pairs;
+          sum += overlap(c1, c2);
+        }
+      }
+      grid_overlap[static_cast<size_t>(g)] = sum;
+      grid_pairs[static_cast<size_t>(g)] = pairs;
+    }
+  }
+  for (int64_t g = 0; g < grid_cells; ++g) {
+    v.overlap_measure += grid_overlap[static_cast<size_t>(g)];
+    v.candidate_pairs += grid_pairs[static_cast<size_t>(g)];
+  }
+  for (const int64_t c1 : large)
+    for (int64_t c2 = 0; c2 < num_cells; ++c2) {
+      if (c2 == c1 || (is_large[static_cast<size_t>(c2)] && c2 < c1)) continue;
+      if (body_of(c1) == body_of(c2) || !boxes_overlap(c1, c2)) continue;
+      ++v.candidate_pairs;
+      v.overlap_measure += overlap(c1, c2);
+    }
+
+  // Nodes strictly inside a cell of another body: the cells listed in the node's grid cell hold
+  // every normal cell whose box holds the node.
+  int64_t inside_count = 0;
+#pragma omp parallel for schedule(static) reduction(+ : inside_count) \
+    if (num_cells >= kParallelCells)
+  for (int64_t i = 0; i < num_nodes_; ++i) {
+    double p[3] = {0, 0, 0};
+    int64_t g[3] = {0, 0, 0};
+    for (int a = 0; a < d; ++a) {
+      p[a] = static_cast<double>(x[i * d + a]);
+      g[a] = coordinate(p[a], a);
+    }
+    const int32_t body = node_body_[static_cast<size_t>(i)];
+    auto inside = [&](int64_t c) {
+      return body_of(c) != body && box_holds(c, p) && node_inside(c, p);
+    };
+    const int64_t at = flat(g);
+    bool found = false;
+    for (int64_t e = start[static_cast<size_t>(at)];
+         e < start[static_cast<size_t>(at + 1)] && !found; ++e)
+      found = inside(entries[static_cast<size_t>(e)]);
+    for (size_t l = 0; l < large.size() && !found; ++l) found = inside(large[l]);
+    inside_count += found;
+  }
+  v.nodes_in_other_body = inside_count;
+  return v;
+}
+
+}  // namespace bsms
