@@ -44,9 +44,11 @@ T read_int_at_least(JsonObjectReader& r, const std::string& key, T lowest) {
   return value;
 }
 
-// A measure (an error or a loss, >= 0), or null read as NaN (it diverged).
+// A measure (an error or a loss, >= 0), or null read as NaN (it diverged; a value built in
+// memory, not read from a file, may hold the NaN itself).
 inline double measure_from_json(const Json& value, const JsonContext& where) {
-  if (value.is_null()) return std::nan("");
+  if (value.is_null() || (value.is_number_float() && std::isnan(value.get<double>())))
+    return std::nan("");
   if (!value.is_number() || !(value.get<double>() >= 0.0))
     throw InputError(where.where() + " must be a number >= 0 or null, got " + describe_json(value));
   return value.get<double>();
