@@ -191,8 +191,8 @@ TEST(Config, OnlyRegularFilesAreRead) {
 TEST(Config, OneLineEscapesControlCharactersAndCapsTheLength) {
   EXPECT_EQ(one_line("a\nb\tc\rd\x1b[31me\x7f\x01"), "a\\nb\\tc\\rd\\x1b[31me\\x7f\\x01");
   EXPECT_EQ(one_line("caf\xc3\xa9 \xe2\x80\xa6"), "caf\xc3\xa9 \xe2\x80\xa6");  // UTF-8 kept
-  EXPECT_EQ(one_line("\xc2\x9b" "2J"), "\\xc2\\x9b2J");      // a C1 control (CSI)
-  EXPECT_EQ(one_line("bad \xff\xc3"), "bad \\xff\\xc3");  // not UTF-8
+  EXPECT_EQ(one_line(std::string("\xc2\x9b") + "2J"), "\\xc2\\x9b2J");          // a C1 control
+  EXPECT_EQ(one_line("bad \xff\xc3"), "bad \\xff\\xc3");                        // not UTF-8
   const std::string capped = one_line(std::string(5000, 'x'));
   EXPECT_EQ(capped.size(), 2000u + 3u);
   EXPECT_EQ(capped.substr(2000), "\xe2\x80\xa6");
