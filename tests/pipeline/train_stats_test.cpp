@@ -100,8 +100,8 @@ TEST(TrainStatsFile, BadFilesNameTheKey) {
   EXPECT_EQ(stats_error(good), "no error");
   EXPECT_THROW(read_train_stats("/nonexistent/train_stats.json"), InputError);
   // Numbers out of their range, named with the file and the field.
-  for (const char* key : {"train_ms_per_step", "peak_rss_mb_train", "wall_s", "final_loss",
-                          "steps", "num_parameters", "allreduce_ms_per_step"}) {
+  for (const char* key : {"train_ms_per_step", "peak_rss_mb_train", "wall_s", "final_loss", "steps",
+                          "num_parameters", "allreduce_ms_per_step"}) {
     Json negative = good;
     negative[key] = -1;
     EXPECT_NE(stats_error(negative).find("RUN/train_stats.json: key '" + std::string(key) + "'"),
