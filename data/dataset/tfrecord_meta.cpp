@@ -1,9 +1,8 @@
 #include "data/dataset/tfrecord_meta.hpp"
 
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
+#include "core/config.hpp"
 #include "core/error.hpp"
 
 namespace bsms::tfrecord {
@@ -64,24 +63,16 @@ DType parse_dtype(std::string s, const std::string& where) {
   if (s == "float64") return DType::kFloat64;
   if (s == "int32") return DType::kInt32;
   if (s == "int64") return DType::kInt64;
-  throw InputError(where + ": unknown dtype '" + s +
+  throw InputError(where + ": unknown dtype '" + truncate_for_message(s) +
                    "' (expected float32, float64, int32 or int64)");
 }
 
 }  // namespace
 
 Meta parse_meta(const std::string& text, const std::string& path) {
-  using Json = nlohmann::json;
-  Json j;
-  try {
-    j = Json::parse(text);
-  } catch (const Json::exception& e) {
-    std::string what = e.what();
-    for (char& c : what)
-      if (c == '\n') c = ' ';
-    throw InputError(path + ": malformed JSON: " + what);
-  }
-  if (!j.is_object()) throw InputError(path + ": expected a JSON object");
+  // The one bounded JSON reader (core/config.hpp): nesting depth, duplicate keys.
+  const Json j = parse_json_text(text, path);
+  if (!j.is_object()) throw InputError(path + ": expected a JSON object, got " + describe_json(j));
   auto require = [&](const char* key) -> const Json& {
     if (!j.contains(key)) throw InputError(path + ": missing key '" + key + "'");
     return j.at(key);
@@ -110,8 +101,11 @@ Meta parse_meta(const std::string& text, const std::string& path) {
   }
   const Json& names = require("field_names");
   const Json& features = require("features");
-  if (!names.is_array() || names.empty())
-    throw InputError(path + ": 'field_names' must be a non-empty list of strings");
+  // Published datasets have a handful; the bound keeps the checks below linear in practice.
+  constexpr size_t kMaxFields = 256;
+  if (!names.is_array() || names.empty() || names.size() > kMaxFields)
+    throw InputError(path + ": 'field_names' must be a non-empty list of at most " +
+                     std::to_string(kMaxFields) + " strings");
   if (!features.is_object()) throw InputError(path + ": 'features' must be an object");
   std::vector<std::string> varlen;
   for (const Json& name_json : names) {
@@ -119,7 +113,7 @@ Meta parse_meta(const std::string& text, const std::string& path) {
       throw InputError(path + ": 'field_names' must be a non-empty list of strings");
     FieldSpec f;
     f.name = name_json.get<std::string>();
-    const std::string where = path + ": field '" + f.name + "'";
+    const std::string where = path + ": field '" + truncate_for_message(f.name) + "'";
     if (m.find(f.name)) throw InputError(where + " is listed twice in 'field_names'");
     if (!features.contains(f.name)) throw InputError(where + " has no entry in 'features'");
     const Json& spec = features.at(f.name);
@@ -136,7 +130,7 @@ Meta parse_meta(const std::string& text, const std::string& path) {
     } else if (type == "dynamic_varlen") {
       f.kind = FieldKind::kDynamicVarlen;
     } else {
-      throw InputError(where + ": unknown type '" + type +
+      throw InputError(where + ": unknown type '" + truncate_for_message(type) +
                        "' (expected static, dynamic or dynamic_varlen)");
     }
     f.dtype = parse_dtype(spec["dtype"].get<std::string>(), where);
@@ -181,9 +175,10 @@ Meta parse_meta(const std::string& text, const std::string& path) {
     if (features.contains(companion) && features.at(companion).is_object() &&
         features.at(companion).contains("dtype") && features.at(companion)["dtype"].is_string())
       dtype = parse_dtype(features.at(companion)["dtype"].get<std::string>(),
-                          path + ": field '" + companion + "'");
+                          path + ": field '" + truncate_for_message(companion) + "'");
     if (dtype != DType::kInt32 && dtype != DType::kInt64)
-      throw InputError(path + ": field '" + companion + "': row lengths must be int32 or int64");
+      throw InputError(path + ": field '" + truncate_for_message(companion) +
+                       "': row lengths must be int32 or int64");
     for (size_t i = 0; i < m.fields.size(); ++i)
       if (m.fields[i].name == companion) {
         m.fields.erase(m.fields.begin() + static_cast<std::ptrdiff_t>(i));
@@ -196,11 +191,8 @@ Meta parse_meta(const std::string& text, const std::string& path) {
 }
 
 Meta read_meta(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open (a MeshGraphNets dataset needs meta.json)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_meta(text.str(), path);
+  return parse_meta(
+      read_text_file(path, kMaxJsonBytes, "meta.json (a MeshGraphNets dataset needs it)"), path);
 }
 
 }  // namespace bsms::tfrecord

@@ -29,6 +29,10 @@ namespace {
 constexpr const char* kManifest = "generate.json";
 constexpr const char* kPartsDir = ".parts";
 constexpr const char* kWorkDir = ".work";
+// As bsms generate --trajectories allows; split weights bounded so that their products with the
+// count cannot overflow.
+constexpr int64_t kMaxTrajectories = 100000000;
+constexpr int64_t kMaxSplitWeight = 1000000;
 const char* const kSplitNames[3] = {"train", "valid", "test"};
 
 std::string part_name(int64_t index) {
@@ -76,6 +80,34 @@ void require_writable_dir(const std::string& dir) {
     if (!f) throw InputError(dir + ": output folder is not writable");
   }
   fs::remove(probe, ec);
+}
+
+// A manifest as manifest() writes it, typed and in range, before anything is made from it.
+void check_manifest(const Json& j, const std::string& path) {
+  JsonObjectReader r(j, {path, ""});
+  require(r.get<std::string>("format") == "bsms-generate", r.context("format"),
+          "\"bsms-generate\"");
+  require(r.get<int>("version") == 1, r.context("version"), "1");
+  require(r.raw("config").is_object(), r.context("config"), "the family config object");
+  const int dim = r.get<int>("dim");
+  require(dim == 2 || dim == 3, r.context("dim"), "2 or 3");
+  require(r.get<double>("frame_dt") > 0, r.context("frame_dt"), "> 0");
+  const int64_t n = r.get<int64_t>("trajectories");
+  require(n >= 1 && n <= kMaxTrajectories, r.context("trajectories"),
+          "in [1, " + std::to_string(kMaxTrajectories) + "]");
+  const Json& split = r.raw("split");
+  bool ok = split.is_array() && split.size() == 3;
+  int64_t sum = 0;
+  for (size_t i = 0; ok && i < 3; ++i) {
+    ok = split[i].is_number_integer() && split[i].get<int64_t>() >= 0 &&
+         split[i].get<int64_t>() <= kMaxSplitWeight;
+    if (ok) sum += split[i].get<int64_t>();
+  }
+  require(
+      ok && sum > 0, r.context("split"),
+      "[train, valid, test] weights in [0, " + std::to_string(kMaxSplitWeight) + "], not all 0");
+  (void)r.get<int64_t>("seed");
+  r.finish();
 }
 
 // Records the run settings in DIR, or checks them against an earlier call's.
@@ -192,9 +224,11 @@ std::array<int64_t, 3> parse_split(const std::string& text, const std::string& w
   char c1 = 0, c2 = 0;
   std::string rest;
   if (!(in >> w[0] >> c1 >> w[1] >> c2 >> w[2]) || c1 != ':' || c2 != ':' || (in >> rest) ||
-      w[0] < 0 || w[1] < 0 || w[2] < 0 || w[0] + w[1] + w[2] == 0)
-    throw InputError(where + ": '" + text +
-                     "' is not a split TRAIN:VALID:TEST of non-negative integers, e.g. 80:10:10");
+      w[0] < 0 || w[1] < 0 || w[2] < 0 || w[0] > kMaxSplitWeight || w[1] > kMaxSplitWeight ||
+      w[2] > kMaxSplitWeight || w[0] + w[1] + w[2] == 0)
+    throw InputError(where + ": '" + truncate_for_message(text) +
+                     "' is not a split TRAIN:VALID:TEST of integers in [0, " +
+                     std::to_string(kMaxSplitWeight) + "], e.g. 80:10:10");
   return w;
 }
 
@@ -205,7 +239,8 @@ Shard parse_shard(const std::string& text, const std::string& where) {
   std::string rest;
   if (!(in >> s.index >> slash >> s.count) || slash != '/' || (in >> rest) || s.count < 1 ||
       s.index < 1 || s.index > s.count)
-    throw InputError(where + ": '" + text + "' is not a shard k/n with 1 <= k <= n");
+    throw InputError(where + ": '" + truncate_for_message(text) +
+                     "' is not a shard k/n with 1 <= k <= n");
   return s;
 }
 
@@ -320,7 +355,8 @@ GenerateSummary merge_parts(const std::vector<std::string>& shard_dirs,
     const std::string path = (fs::path(dir) / kManifest).string();
     if (!fs::exists(path))
       throw InputError(dir + ": not a bsms generate folder (no " + std::string(kManifest) + ")");
-    const Json j = load_json_file(path);
+    const Json j = load_json_file(path, "generate manifest");
+    check_manifest(j, path);
     if (settings.is_null()) settings = j;
     if (j != settings)
       throw InputError(path + ": generated with other settings than " + shard_dirs[0] +

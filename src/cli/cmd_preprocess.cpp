@@ -7,9 +7,11 @@
 #include <string>
 
 #include "cli/command.hpp"
+#include "core/config.hpp"
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "core/mesh.hpp"
+#include "core/one_line.hpp"
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "pipeline/graph_store.hpp"
@@ -39,7 +41,8 @@ int parse_levels(const std::string& text) {
     used = 0;
   }
   if (used != text.size() || value < 1 || value > bsms::kAutoMaxLevels) {
-    throw bsms::InputError("--levels " + text + ": expected auto or an integer in 1.." +
+    throw bsms::InputError("--levels " + bsms::truncate_for_message(text) +
+                           ": expected auto or an integer in 1.." +
                            std::to_string(bsms::kAutoMaxLevels));
   }
   return static_cast<int>(value);
@@ -73,8 +76,10 @@ void print_table(const std::vector<bsms::LevelReport>& report) {
 void run_preprocess_data(const PreprocessOptions& options) {
   namespace fs = std::filesystem;
   bsms::Stopwatch total;
-  const int threads = bsms::set_num_threads(options.threads);
+  // Every option checked before a dataset is opened.
+  int levels = parse_levels(options.levels);
   const bsms::Seeding seeding = bsms::parse_seeding(options.seeding);
+  const int threads = bsms::set_num_threads(options.threads);
   const std::string out =
       options.out.empty() ? (fs::path(options.data) / "multilevel").string() : options.out;
   std::vector<bsms::Dataset> splits;
@@ -83,7 +88,6 @@ void run_preprocess_data(const PreprocessOptions& options) {
     if (std::string(split) == "train" || bsms::Dataset::has_split(options.data, split))
       splits.push_back(bsms::Dataset::open_split(options.data, split));
   }
-  int levels = parse_levels(options.levels);
   if (levels == 0) levels = bsms::auto_levels(splits[0].mesh(0), seeding);
   bsms::cli::require_creatable_dir(out);
   const bsms::cli::RemoveOnFailure cleanup(out);
@@ -136,7 +140,7 @@ void run_preprocess(const PreprocessOptions& options) {
   const bsms::BadCells bad = bsms::find_bad_cells(mesh);
   if (bad.count() > 0)
     std::fprintf(stderr, "preprocess: warning: %s: %s; the graph uses the connectivity only\n",
-                 options.mesh.c_str(), bad.describe().c_str());
+                 bsms::one_line(options.mesh, 300).c_str(), bad.describe().c_str());
   std::vector<bsms::LevelReport> report;
   clock.reset();
   const bsms::MultilevelGraph graph = bsms::build_multilevel_graph(mesh, build, &report);

@@ -1,6 +1,7 @@
 // bsms: entry point. Sets up the runtime (OpenMP wait policy, threads), dispatches subcommands and
 // turns errors into one clear line: InputError -> exit 2, NumericalError -> exit 3, IoError -> 4,
-// DistributedError (a lost rank) -> 5, any other exception -> 1 ("internal error": a bug).
+// DistributedError (a lost rank) -> 5, any other exception -> 1 ("internal error": a bug). Every
+// message goes through one_line (core/one_line.hpp): control characters escaped, length capped.
 #include <unistd.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 
 #include "cli/command.hpp"
 #include "core/error.hpp"
+#include "core/one_line.hpp"
 #include "core/runtime.hpp"
 
 namespace bsms::cli {
@@ -105,24 +107,24 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::cerr << "bsms: " << e.what() << " (see --help)\n";
+    std::cerr << "bsms: " << bsms::one_line(e.what()) << " (see --help)\n";
     return 2;
   } catch (const bsms::InputError& e) {
-    std::cerr << "bsms: error: " << e.what() << "\n";
+    std::cerr << "bsms: error: " << bsms::one_line(e.what()) << "\n";
     return 2;
   } catch (const bsms::NumericalError& e) {
-    std::cerr << "bsms: numerical failure: " << e.what() << "\n";
+    std::cerr << "bsms: numerical failure: " << bsms::one_line(e.what()) << "\n";
     return 3;
   } catch (const bsms::IoError& e) {
-    std::cerr << "bsms: I/O error: " << e.what() << "\n";
+    std::cerr << "bsms: I/O error: " << bsms::one_line(e.what()) << "\n";
     return 4;
   } catch (const bsms::SilentExit& e) {
     return e.code;
   } catch (const bsms::DistributedError& e) {
-    std::cerr << "bsms: distributed training stopped: " << e.what() << "\n";
+    std::cerr << "bsms: distributed training stopped: " << bsms::one_line(e.what()) << "\n";
     return 5;
   } catch (const std::exception& e) {
-    std::cerr << "bsms: internal error: " << e.what() << "\n";
+    std::cerr << "bsms: internal error: " << bsms::one_line(e.what()) << "\n";
     return 1;
   }
   return 0;

@@ -13,8 +13,40 @@ namespace bsms {
 
 using Json = nlohmann::json;
 
-// Parses a JSON file; InputError names the file and the parse position on failure.
-Json load_json_file(const std::string& path);
+// Bounds on what bsms reads as JSON (every JSON file and JSON text it reads goes through
+// parse_json_text): nesting deeper than kMaxJsonDepth levels is refused while parsing, before any
+// recursive walk of the value (copy, dump, comparison) could overflow the stack; a file larger
+// than kMaxJsonBytes is refused before it is read. Configs, run files and dataset metadata are a
+// few kilobytes and a few levels deep.
+inline constexpr int kMaxJsonDepth = 128;
+inline constexpr size_t kMaxJsonBytes = size_t{64} << 20;
+
+// Reads a whole input file of at most `limit` bytes. Only regular files: a FIFO, a device (e.g.
+// /dev/zero) or a folder is refused before a byte is read, so reading cannot block or run
+// without end. InputError names the path and `what` (e.g. "config file") when the file is
+// missing, unreadable, not a regular file or larger than `limit`.
+std::string read_text_file(const std::string& path, size_t limit, const std::string& what);
+
+// The check of read_text_file for files read as streams (a training log): InputError unless
+// `path` is an existing regular file.
+void require_regular_file(const std::string& path, const std::string& what);
+
+// Parses JSON text (comments allowed) from `source` (a file name, or e.g. "PATH: attribute
+// scene"): InputError naming the source on malformed text, on nesting deeper than kMaxJsonDepth
+// and on a key that appears twice in one object (naming its key path), instead of the last one
+// silently winning.
+Json parse_json_text(const std::string& text, const std::string& source);
+
+// read_text_file + parse_json_text, and a JSON object at the top level.
+Json load_json_file(const std::string& path, const std::string& what = "config file",
+                    size_t limit = kMaxJsonBytes);
+
+// A JSON value for a message, never the whole of it: its type and at most about 40 characters
+// (a list of 500000 elements; the string "fast"; 1.5).
+std::string describe_json(const Json& value);
+
+// At most `max` characters of `text`, "..." marking a cut (keys and values named in messages).
+std::string truncate_for_message(const std::string& text, size_t max = 40);
 
 // Applies "a.b.c=value" (value parsed as JSON, else taken as a string). Creates missing keys;
 // the typed reader then rejects keys it does not know. `source` names the origin in errors.
@@ -27,7 +59,9 @@ struct JsonContext {
   JsonContext child(const std::string& key) const {
     return {file, path.empty() ? key : path + "." + key};
   }
-  std::string where() const { return file + (path.empty() ? "" : ": key '" + path + "'"); }
+  std::string where() const {
+    return file + (path.empty() ? "" : ": key '" + truncate_for_message(path, 200) + "'");
+  }
 };
 
 // Reads one JSON object strictly: call get/opt for each key, then finish() rejects the rest.

@@ -14,10 +14,11 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
   const JsonContext where = context_.child(key);
   try {
     if constexpr (std::is_same_v<T, bool>) {
-      if (!value.is_boolean()) throw InputError(where.where() + " must be true or false");
+      if (!value.is_boolean())
+        throw InputError(where.where() + " must be true or false, got " + describe_json(value));
     } else if constexpr (std::is_integral_v<T>) {
       if (!value.is_number_integer())
-        throw InputError(where.where() + " must be an integer, got " + value.dump());
+        throw InputError(where.where() + " must be an integer, got " + describe_json(value));
       // In the range of T: a negative seed must not wrap to 2^64 - 1.
       const bool fits =
           value.is_number_unsigned()
@@ -29,15 +30,16 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
       if (!fits)
         throw InputError(where.where() + " must be an integer in [" +
                          std::to_string(std::numeric_limits<T>::min()) + ", " +
-                         std::to_string(std::numeric_limits<T>::max()) + "], got " + value.dump());
+                         std::to_string(std::numeric_limits<T>::max()) + "], got " +
+                         describe_json(value));
     } else if constexpr (std::is_floating_point_v<T>) {
       if (!value.is_number())
-        throw InputError(where.where() + " must be a number, got " + value.dump());
+        throw InputError(where.where() + " must be a number, got " + describe_json(value));
       const double v = value.get<double>();
       if (!std::isfinite(v)) throw InputError(where.where() + " must be finite");
     } else if constexpr (std::is_same_v<T, std::string>) {
       if (!value.is_string())
-        throw InputError(where.where() + " must be a string, got " + value.dump());
+        throw InputError(where.where() + " must be a string, got " + describe_json(value));
     }
     return value.get<T>();
   } catch (const nlohmann::json::exception& e) {

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "core/error.hpp"
+#include "core/one_line.hpp"
 #include "preprocess/multilevel_file.hpp"
 
 namespace bsms {
@@ -91,8 +92,9 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
     } catch (const InputError& e) {
       problem = e.what();
     }
-    std::cerr << "bsms: warning: cached graph " << path << " not used (" << problem
-              << "); rebuilding it\n";
+    std::cerr << "bsms: warning: "
+              << one_line("cached graph " + path + " not used (" + problem + ")")
+              << "; rebuilding it\n";
   }
   if (!loaded) {
     BuildOptions options;
@@ -116,7 +118,7 @@ const MeshGraphs& GraphStore::get(const TrajectoryMesh& mesh) {
     if (!failure.empty() && !warned_write_) {
       warned_write_ = true;
       std::cerr << "bsms: warning: graphs are kept in memory only, no cache folder took them ("
-                << failure << ")\n";
+                << one_line(failure) << ")\n";
     }
   }
   entry->hierarchy = make_multilevel_tensors(entry->multilevel, levels_);

@@ -34,7 +34,12 @@ bool slip_walls_only(const Json& scene) {
 }  // namespace
 
 Json scene_background(const std::string& scene_json, Json* scene_out) {
-  const Json parsed = Json::parse(scene_json, nullptr, false);
+  Json parsed;
+  try {
+    parsed = parse_json_text(scene_json, "the dataset's scene");
+  } catch (const InputError&) {
+    return Json::object();  // not JSON (or beyond the reader's bounds): no scene
+  }
   if (!parsed.is_object()) return Json::object();
   const Json& scene =
       parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;

@@ -167,8 +167,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       throw InputError(config_file + ": an Eulerian run; --ensemble averages Lagrangian runs");
     if (request.symmetrize)
       throw InputError(config_file + ": an Eulerian run; --symmetrize maps Lagrangian states");
-    return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file),
-                            levels);
+    return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file), levels,
+                            folder.stats);
   }
   LagrangianSpec spec = lagrangian_spec_from_json(features, config_file);
   const int threads = configure_threads(set_num_threads(request.threads));
@@ -400,7 +400,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     metrics.inverted_cells_max = std::max(metrics.inverted_cells_max, f);
   }
   metrics.validity = validity.metrics();
-  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, run);
+  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, folder.stats);
   if (!solver_ms_per_frame.empty()) {
     metrics.solver_ms_per_frame = rollout_outputs::median(solver_ms_per_frame);
     if (metrics.infer_ms_per_step > 0)

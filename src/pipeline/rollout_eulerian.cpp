@@ -21,7 +21,8 @@ namespace bsms {
 namespace fs = std::filesystem;
 
 RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
-                                const EulerianSpec& spec, int levels) {
+                                const EulerianSpec& spec, int levels,
+                                const std::optional<TrainStats>& stats) {
   const std::string run = request.run;
   if (request.one_step)
     throw InputError(run +
@@ -187,7 +188,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
     for (size_t f = 0; f < sq[k].size(); ++f)
       curve.push_back(std::sqrt(sq[k][f] / (values[k][f] * static_cast<double>(outputs[k].width))));
   }
-  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, run);
+  rollout_outputs::add_run_figures(metrics, tally, count, seeding, threads, levels, stats);
   write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet) {
     std::cerr << "bsms rollout: " << count << " trajectories, RMSE-all";

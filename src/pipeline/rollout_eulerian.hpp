@@ -4,16 +4,21 @@
 // persistence (the first frame held: no model).
 #pragma once
 
+#include <optional>
+
 #include "pipeline/eulerian.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/rollout_metrics.hpp"
 #include "pipeline/train_config.hpp"
+#include "pipeline/train_stats.hpp"
 
 namespace bsms {
 
-// Rolls the run of `request` out with its validated config, resolved spec and level count, and
-// writes the predicted trajectories and metrics.json (rollout_outputs::out_dir).
+// Rolls the run of `request` out with its validated config, resolved spec, level count and
+// training stats (none before a session finished), and writes the predicted trajectories and
+// metrics.json (rollout_outputs::out_dir).
 RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig& config,
-                                const EulerianSpec& spec, int levels);
+                                const EulerianSpec& spec, int levels,
+                                const std::optional<TrainStats>& stats);
 
 }  // namespace bsms

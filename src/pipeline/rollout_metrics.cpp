@@ -58,7 +58,8 @@ std::vector<double> measures_from_json(const Json& values, const JsonContext& wh
   require(values.is_array(), where, "an array of numbers");
   std::vector<double> out;
   out.reserve(values.size());
-  for (const Json& v : values) out.push_back(measure_from_json(v, where));
+  for (size_t i = 0; i < values.size(); ++i)
+    out.push_back(measure_from_json(values[i], where.child(std::to_string(i))));
   return out;
 }
 
@@ -190,8 +191,8 @@ std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
     require(list[i].is_object(), where, "an object {trajectory, frame}");
     JsonObjectReader r(list[i], where);
     DivergedTrajectory d;
-    d.trajectory = r.get<int64_t>("trajectory");
-    d.frame = r.get<int64_t>("frame");
+    d.trajectory = read_int_at_least<int64_t>(r, "trajectory", 0);
+    d.frame = read_int_at_least<int64_t>(r, "frame", 0);
     r.finish();
     out.push_back(d);
   }
@@ -329,10 +330,9 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   }
   m.split = r.get<std::string>("split");
   m.data = r.get<std::string>("data");
-  m.num_trajectories = r.get<int64_t>("num_trajectories");
+  m.num_trajectories = read_int_at_least<int64_t>(r, "num_trajectories", 0);
   m.one_step = r.opt<bool>("one_step", false);
-  m.symmetries = r.opt<int>("symmetries", 1);
-  require(m.symmetries >= 1, r.context("symmetries"), ">= 1");
+  if (r.has("symmetries")) m.symmetries = read_int_at_least<int>(r, "symmetries", 1);
   m.rmse_1 = field_rmse_from_json(r, "rmse_1");
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");
@@ -342,9 +342,13 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
     m.rmse_all_persistence = field_rmse_from_json(r, "rmse_all_persistence");
   } else {
     m.rmse_all_constant_velocity = read_nullable(r, "rmse_all_constant_velocity");
+    // Fractions of the cells: in [0, 1] (NaN for a diverged step).
     m.inverted_cells_per_step =
         measures_from_json(r.raw("inverted_cells_per_step"), r.context("inverted_cells_per_step"));
-    m.inverted_cells_max = r.get<double>("inverted_cells_max");
+    for (const double f : m.inverted_cells_per_step)
+      require(!(f > 1.0), r.context("inverted_cells_per_step"), "a list of fractions in [0, 1]");
+    m.inverted_cells_max = read_at_least(r, "inverted_cells_max");
+    require(m.inverted_cells_max <= 1.0, r.context("inverted_cells_max"), "a fraction in [0, 1]");
     m.rmse_all_parts = motion_rmse_from_json(r, "rmse_all_parts");
     m.rmse_all_parts_constant_velocity =
         motion_rmse_from_json(r, "rmse_all_parts_constant_velocity");
@@ -355,17 +359,17 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
     m.validity = validity_from_json(r, "validity");
   }
   m.seeding = r.get<std::string>("seeding");
-  m.infer_ms_per_step = r.get<double>("infer_ms_per_step");
+  m.infer_ms_per_step = read_at_least(r, "infer_ms_per_step");
   m.solver_ms_per_frame = read_nullable(r, "solver_ms_per_frame");
   m.speedup_vs_solver = read_nullable(r, "speedup_vs_solver");
-  m.peak_rss_mb_infer = r.get<double>("peak_rss_mb_infer");
-  m.num_nodes_mean = r.get<double>("num_nodes_mean");
-  m.threads = r.get<int>("threads");
+  m.peak_rss_mb_infer = read_at_least(r, "peak_rss_mb_infer");
+  m.num_nodes_mean = read_at_least(r, "num_nodes_mean");
+  m.threads = read_int_at_least<int>(r, "threads", 0);
   m.diverged = diverged_from_json(r);
-  m.levels = r.get<int>("levels");
+  m.levels = read_int_at_least<int>(r, "levels", 1);
   m.train_ms_per_step = read_nullable(r, "train_ms_per_step");
   m.peak_rss_mb_train = read_nullable(r, "peak_rss_mb_train");
-  if (r.has("train_steps")) m.train_steps = r.get<int64_t>("train_steps");
+  if (r.has("train_steps")) m.train_steps = read_int_at_least<int64_t>(r, "train_steps", 0);
   r.finish();
   return m;
 }
@@ -373,7 +377,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
 RolloutMetrics read_rollout_metrics(const std::string& file) {
   if (!std::filesystem::exists(file))
     throw InputError(file + ": not found (run bsms rollout first)");
-  return rollout_metrics_from_json(load_json_file(file), file);
+  return rollout_metrics_from_json(load_json_file(file, "rollout metrics"), file);
 }
 
 }  // namespace bsms

@@ -42,7 +42,8 @@ void write_xdmf_files(const std::string& out_h5, const fs::path& out_dir,
 }
 
 void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t count,
-                     Seeding seeding, int threads, int levels, const std::string& run) {
+                     Seeding seeding, int threads, int levels,
+                     const std::optional<TrainStats>& stats) {
   metrics.seeding = to_string(seeding);
   metrics.infer_ms_per_step = median(tally.infer_ms);
   metrics.peak_rss_mb_infer = peak_rss_mb();
@@ -50,12 +51,10 @@ void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t
   metrics.threads = threads;
   metrics.diverged = tally.diverged;
   metrics.levels = levels;
-  const std::string stats_file = run_stats_path(run);
-  if (!fs::exists(stats_file)) return;
-  const TrainStats stats = read_train_stats(stats_file);
-  metrics.train_ms_per_step = stats.train_ms_per_step;
-  metrics.peak_rss_mb_train = stats.peak_rss_mb_train;
-  metrics.train_steps = stats.steps;
+  if (!stats) return;
+  metrics.train_ms_per_step = stats->train_ms_per_step;
+  metrics.peak_rss_mb_train = stats->peak_rss_mb_train;
+  metrics.train_steps = stats->steps;
 }
 
 double median(std::vector<double> v) {

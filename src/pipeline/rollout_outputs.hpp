@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "pipeline/rollout.hpp"
 #include "pipeline/rollout_metrics.hpp"
 #include "pipeline/train_config.hpp"
+#include "pipeline/train_stats.hpp"
 
 namespace bsms::rollout_outputs {
 
@@ -36,9 +38,11 @@ struct RolloutTally {
 
 // The figures every rollout records besides its errors: seeding, median inference time, peak
 // memory, mean node count, threads, levels, the diverged trajectories, and the training figures
-// of RUN/train_stats.json (none before a training session has finished).
+// of RUN/train_stats.json (`stats`, read with the run folder before the rollout; none before a
+// training session has finished).
 void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t count,
-                     Seeding seeding, int threads, int levels, const std::string& run);
+                     Seeding seeding, int threads, int levels,
+                     const std::optional<TrainStats>& stats);
 
 // The median of per-step times (0 for none).
 double median(std::vector<double> v);

@@ -35,16 +35,27 @@ RunFolder RunFolder::open(const std::string& dir) {
   run.config_path = run_config_path(dir);
   if (!std::filesystem::exists(run.config_path))
     throw InputError(dir + ": not a run folder (no config.json; train first with bsms train)");
-  const Json saved = load_json_file(run.config_path);
+  const Json saved = load_json_file(run.config_path, "run config");
   for (const char* key : {"config", "features_resolved", "levels"})
     if (!saved.contains(key))
       throw InputError(run.config_path + ": key " + key + " is missing (written by bsms train)");
-  if (!saved["levels"].is_number_integer() || saved["levels"].get<int64_t>() < 1)
-    throw InputError(run.config_path + ": levels = " + saved["levels"].dump() +
-                     ", expected an integer >= 1");
+  // As model.levels allows (train_config.cpp).
+  if (!saved["levels"].is_number_integer() || saved["levels"].get<int64_t>() < 1 ||
+      saved["levels"].get<int64_t>() > 64)
+    throw InputError(run.config_path + ": levels = " + describe_json(saved["levels"]) +
+                     ", expected an integer in [1, 64]");
+  if (saved.contains("world_size")) {
+    const Json& world = saved["world_size"];
+    if (!world.is_number_integer() || world.get<int64_t>() < 1 || world.get<int64_t>() > 1 << 20)
+      throw InputError(run.config_path + ": world_size = " + describe_json(world) +
+                       ", expected an integer in [1, 1048576]");
+    run.world_size = world.get<int>();
+  }
   run.config = parse_train_config(saved["config"], run.config_path);
   run.levels = saved["levels"].get<int>();
   run.features_resolved = saved["features_resolved"];
+  const std::string stats = run_stats_path(dir);
+  if (std::filesystem::exists(stats)) run.stats = read_train_stats(stats);
   return run;
 }
 

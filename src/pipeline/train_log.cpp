@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
 
+#include "core/config.hpp"
 #include "core/error.hpp"
 
 namespace bsms {
@@ -50,6 +52,11 @@ std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bo
   const auto loss = parse_number(cells[2]);
   const auto lr = parse_number(cells.back());
   if (!step || !wall || !loss || !lr) return std::nullopt;
+  // Times and learning rates are finite and >= 0; a loss is >= 0 or not finite (a diverged
+  // step is logged as it was).
+  const auto loss_like = [](double v) { return std::isnan(v) || v >= 0.0; };
+  if (!std::isfinite(*wall) || *wall < 0.0 || !std::isfinite(*lr) || *lr < 0.0 || !loss_like(*loss))
+    return std::nullopt;
   row.step = *step;
   row.wall_s = *wall;
   row.loss = *loss;
@@ -59,12 +66,12 @@ std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bo
   const std::string& zero = baseline ? cells[4] : none;
   if (!valid.empty()) {
     const auto v = parse_number(valid);
-    if (!v) return std::nullopt;
+    if (!v || !loss_like(*v)) return std::nullopt;
     row.valid_loss = *v;
   }
   if (!zero.empty()) {
     const auto z = parse_number(zero);
-    if (!z || valid.empty()) return std::nullopt;
+    if (!z || valid.empty() || !loss_like(*z)) return std::nullopt;
     row.valid_baseline = *z;
   }
   return row;
@@ -89,6 +96,7 @@ std::optional<TrainLogRow> parse_train_log_row(const std::string& line) {
 }
 
 std::vector<TrainLogRow> read_train_log(const std::string& file) {
+  require_regular_file(file, "training log");  // a FIFO or a device would block or never end
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open the training log (written by bsms train)");
   std::string line;

@@ -31,28 +31,26 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
   require(json.is_object(), {file, ""}, "a JSON object");
   JsonObjectReader r(json, {file, ""});
   TrainStats s;
-  s.steps = r.get<int64_t>("steps");
-  require(s.steps >= 0, r.context("steps"), ">= 0");
-  s.train_ms_per_step = r.get<double>("train_ms_per_step");
-  s.peak_rss_mb_train = r.get<double>("peak_rss_mb_train");
-  s.threads = r.get<int>("threads");
-  s.world_size = r.get<int>("world_size");
-  require(s.world_size >= 1, r.context("world_size"), ">= 1");
-  s.samples_per_step = r.get<int64_t>("samples_per_step");
-  s.wall_s = r.get<double>("wall_s");
+  s.steps = read_int_at_least<int64_t>(r, "steps", 0);
+  s.train_ms_per_step = read_at_least(r, "train_ms_per_step");
+  s.peak_rss_mb_train = read_at_least(r, "peak_rss_mb_train");
+  s.threads = read_int_at_least<int>(r, "threads", 1);
+  s.world_size = read_int_at_least<int>(r, "world_size", 1);
+  s.samples_per_step = read_int_at_least<int64_t>(r, "samples_per_step", 1);
+  s.wall_s = read_at_least(r, "wall_s");
   s.final_loss = read_measure(r, "final_loss");
   s.final_valid_loss = read_measure(r, "final_valid_loss");
   s.final_valid_baseline = read_measure(r, "final_valid_baseline");
-  s.num_parameters = r.get<int64_t>("num_parameters");
+  s.num_parameters = read_int_at_least<int64_t>(r, "num_parameters", 0);
   s.valid_split = r.get<std::string>("valid_split");
   require(s.valid_split == "valid" || s.valid_split == "train", r.context("valid_split"),
           "\"valid\" or \"train\"");
   if (r.has("blas")) s.blas = r.get<std::string>("blas");
   if (r.has("allocator")) s.allocator = r.get<std::string>("allocator");
   if (r.has("allreduce_ms_per_step"))
-    s.allreduce_ms_per_step = r.get<double>("allreduce_ms_per_step");
+    s.allreduce_ms_per_step = read_at_least(r, "allreduce_ms_per_step");
   if (r.has("allreduce_calls_per_step"))
-    s.allreduce_calls_per_step = r.get<double>("allreduce_calls_per_step");
+    s.allreduce_calls_per_step = read_at_least(r, "allreduce_calls_per_step");
   r.finish();
   return s;
 }
@@ -60,7 +58,7 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
 TrainStats read_train_stats(const std::string& file) {
   if (!std::filesystem::exists(file))
     throw InputError(file + ": not found (written by bsms train when a session ends)");
-  return train_stats_from_json(load_json_file(file), file);
+  return train_stats_from_json(load_json_file(file, "training stats"), file);
 }
 
 }  // namespace bsms

@@ -15,10 +15,12 @@
 #include <iostream>
 #include <iterator>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
+#include "core/one_line.hpp"
 #include "core/runtime.hpp"
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
@@ -162,7 +164,7 @@ TrainResult train(const TrainRequest& request) {
   const bool writer = rank == 0;  // rank 0 alone writes the run folder
   const bool quiet = request.quiet || !writer;
   if (!has_valid && writer)
-    std::cerr << "bsms train: warning: " << config.data
+    std::cerr << "bsms train: warning: " << one_line(config.data, 300)
               << " has no valid split; valid_loss is measured on training frames\n";
 
   const std::string checkpoint = run_checkpoint_path(run);
@@ -174,6 +176,7 @@ TrainResult train(const TrainRequest& request) {
   // Rank 0 checks and prepares the run folder; with --resume it reads the checkpoint, which the
   // other ranks (perhaps on machines without the folder) receive from it.
   std::string checkpoint_bytes;
+  std::optional<TrainStats> stats_before;  // RUN/train_stats.json on --resume, when there is one
   if (writer) {
     try {
       std::error_code ec;
@@ -188,10 +191,13 @@ TrainResult train(const TrainRequest& request) {
                          ": nothing to resume (no checkpoint in this run folder; a session "
                          "stopped before its first checkpoint is started again without --resume)");
       if (request.resume) {
-        const Json saved = load_json_file(run_config_path(run));
+        // Every file the resume reads besides the checkpoint is read and checked here, before
+        // anything is trained or written: config.json and train_stats.json (RunFolder), the log.
         // The saved config read back and written again: keys added since it was written
         // (e.g. model.mp_per_level) take their defaults instead of counting as a change.
         const RunFolder before_run = RunFolder::open(run);
+        stats_before = before_run.stats;
+        if (fs::exists(run_log_path(run))) (void)read_train_log(run_log_path(run));
         Json a = to_json(before_run.config), b = run_json["config"];
         for (auto* j : {&a, &b}) {
           j->erase("steps");
@@ -201,10 +207,10 @@ TrainResult train(const TrainRequest& request) {
           throw InputError(run_config_path(run) +
                            ": the run was trained with another configuration; "
                            "only steps and time_budget_s may change on --resume");
-        const int before = saved.value("world_size", 1);
+        const int before = before_run.world_size;
         if (before != world)
-          std::cerr << "bsms train: warning: " << run << " was trained with " << before
-                    << " rank(s) of batch size " << config.optimizer.batch_size
+          std::cerr << "bsms train: warning: " << one_line(run, 300) << " was trained with "
+                    << before << " rank(s) of batch size " << config.optimizer.batch_size
                     << "; continuing with " << world
                     << ": the sample sequence changed (training goes on correctly, with "
                     << world * config.optimizer.batch_size << " samples per step instead of "
@@ -454,9 +460,9 @@ TrainResult train(const TrainRequest& request) {
     stats.allreduce_calls_per_step =
         static_cast<double>(comm->collective_calls - collective_calls_before) / session_steps;
   }
-  if (request.resume && fs::exists(run_stats_path(run))) {
+  if (stats_before) {
     // Keep the median of the first session when this one ran no step.
-    const TrainStats before = read_train_stats(run_stats_path(run));
+    const TrainStats& before = *stats_before;
     if (fitted.step_ms.empty()) stats.train_ms_per_step = before.train_ms_per_step;
     stats.peak_rss_mb_train = std::max(before.peak_rss_mb_train, stats.peak_rss_mb_train);
   }

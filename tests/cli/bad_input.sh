@@ -148,6 +148,8 @@ EOF
   printf '{"family": "disks", ' >family_broken.json
   sed 's/"family": "disks"/"family": "teapots"/' "$src/configs/families/disks2d.json" >family_unknown.json
 
+  setup_json
+
   chmod -R a-w "$tmp"/run "$tmp"/data 2>/dev/null || true  # (root ignores it; documents intent)
   cd "$work"
   rm -rf "$in"
@@ -155,6 +157,44 @@ EOF
   # The configs and runs name $tmp; the final paths are $in (fixed above where it matters).
   grep -rl --include=config.json "$tmp" "$in" | xargs -r sed -i "s#$tmp#$in#g"
   echo "bad-input corpus: inputs ready in $in"
+}
+
+# --- JSON intake, regular files, one-line messages (setup_json) ---
+# Inputs of the json_* cases: JSON nested 100,000 deep (a config, a run's config.json, a run's
+# metrics.json), a 500,000-element list where an object or an integer is expected, a duplicate
+# key, a FIFO as config, control characters in a key and in a dtype, a negative RMSE, and runs to
+# resume whose train_stats.json or train_log.csv is damaged.
+setup_json() {
+  local open close base list
+  open=$(head -c 100000 /dev/zero | tr '\0' '[')
+  close=$(head -c 100000 /dev/zero | tr '\0' ']')
+  printf '{"data": %s%s}\n' "$open" "$close" >json_deep.json
+  base='"steps": 3, "valid_every": 2, "valid_samples": 2, "normalizer_steps": 2'
+  list=$(yes 0 | head -n 500000 | paste -sd, -)
+  printf '{"data": "%s", %s, "model": [%s]}\n' "$in/data" "$base" "$list" >json_list_object.json
+  printf '{"data": "%s", %s, "model": {"type": "bsms", "latent": [%s]}}\n' "$in/data" "$base" \
+    "$list" >json_list_integer.json
+  printf '{"data": "%s", %s, "model": {"type": "bsms", "latent": 8, "type": "mgn"}}\n' \
+    "$in/data" "$base" >json_duplicate_key.json
+  printf '{"data": "%s", %s, "model": {"type": "bsms", "latent": 8, "levels": 2}, "col\\u001b[31mour\\n": 1}\n' \
+    "$in/data" "$base" >json_control_key.json
+  mkfifo json_fifo.json
+  cp -r "$src/tests/fixtures/meshgraphnets/cylinder_flow" mgn_control_dtype
+  sed -i 's/"dtype": "float32"/"dtype": "float\\u001b[2Jbad\\r\\n32"/' mgn_control_dtype/meta.json
+  # Runs: a deep config.json; a deep and a negative metrics.json; damaged files to resume from.
+  cp -r run json_run_deep_config
+  cp json_deep.json json_run_deep_config/config.json
+  cp -r run_rolled json_run_deep_metrics
+  { printf '{"rmse_all": '; printf '%s%s' "$open" "$close"; printf '}\n'; } \
+    >json_run_deep_metrics/rollout/metrics.json
+  cp -r run_rolled json_run_negative_rmse
+  sed -i -E '/"rmse_all": \{/,/\}/ s/("world_pos": )[0-9.eE+-]+/\1-0.5/' \
+    json_run_negative_rmse/rollout/metrics.json
+  grep -q '"world_pos": -0.5' json_run_negative_rmse/rollout/metrics.json
+  cp -r run json_run_resume_stats
+  truncate_half json_run_resume_stats/train_stats.json
+  cp -r run json_run_resume_log
+  sed -i '2i 1,not-a-time,0.5,,,0.001' json_run_resume_log/train_log.csv
 }
 
 run_case() {
@@ -173,7 +213,12 @@ run_case() {
   eval "set -- $cmd"
   echo "case $name: $*"
   cd "$work/out" || return 1
-  OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE} "$here/expect_exit.sh" --match "$regex" "$code" "$absent" "$@"
+  # Every case: within a time limit (a case that blocks, e.g. on a FIFO, or that starts the work
+  # it should have refused, fails instead of hanging), and its one line printable (no raw control
+  # character) and at most 1000 bytes long.
+  OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE} BSMS_EXPECT_LINE_MAX=1000 \
+    "$here/expect_exit.sh" --match "$regex" "$code" "$absent" \
+    timeout -k 5 "${BSMS_CASE_TIMEOUT:-25}" "$@"
 }
 
 check_table() {

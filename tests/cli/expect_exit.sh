@@ -23,6 +23,18 @@ fi
 if [ "$want" = 2 ] && [ "$lines" != 1 ]; then
   echo "expected one line on stderr, got $lines:"; cat "$err"; status=1
 fi
+# BSMS_EXPECT_LINE_MAX=N (the bad-input corpus): the one line of an exit 2 must be printable (no
+# control character: a newline, an escape sequence from a file's key) and at most N bytes.
+if [ -n "${BSMS_EXPECT_LINE_MAX:-}" ] && [ "$want" = 2 ]; then
+  if LC_ALL=C grep -q '[[:cntrl:]]' "$err"; then
+    echo "stderr holds a raw control character:"; LC_ALL=C od -c "$err" | head -20; status=1
+  fi
+  bytes=$(($(wc -c <"$err") - 1))
+  if [ "$bytes" -gt "$BSMS_EXPECT_LINE_MAX" ]; then
+    echo "stderr line of $bytes bytes, more than $BSMS_EXPECT_LINE_MAX:"; head -c 400 "$err"; echo
+    status=1
+  fi
+fi
 if [ -n "$match" ] && ! grep -Eq -e "$match" "$err"; then
   echo "stderr does not match /$match/:"; cat "$err"; status=1
 fi

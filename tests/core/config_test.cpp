@@ -2,9 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+
+#include "core/one_line.hpp"
 
 namespace bsms {
 namespace {
@@ -102,6 +106,96 @@ TEST(Config, FuzzNumberOverflowAndNonUtf8AreInputErrors) {
   EXPECT_NE(message_of([&] { apply_override(j, "a\xff=1", "--set"); }).find("UTF-8"),
             std::string::npos);
   EXPECT_NO_THROW(j.dump());
+}
+
+// The one JSON reader's bounds: nesting depth (no stack overflow on 100,000 levels), duplicate
+// keys named by their path, and values in messages by type and at most ~40 characters.
+TEST(Config, DeepNestingIsRefusedWithoutRecursion) {
+  const std::string deep = "{\"a\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
+  const std::string msg = message_of([&] { parse_json_text(deep, "deep.json"); });
+  EXPECT_NE(msg.find("deep.json: lists and objects nested deeper than 128 levels"),
+            std::string::npos)
+      << msg;
+  EXPECT_LT(msg.size(), 200u);
+  // At the bound itself the value is read.
+  const std::string at_bound = std::string(kMaxJsonDepth, '[') + std::string(kMaxJsonDepth, ']');
+  EXPECT_NO_THROW(parse_json_text(at_bound, "ok.json"));
+  const std::string over = "[" + at_bound + "]";
+  EXPECT_THROW(parse_json_text(over, "over.json"), InputError);
+  // --set nests its key path and its value: the same bound holds for both together.
+  Json config = Json::object();
+  std::string keys = "a";
+  for (int i = 0; i < 200; ++i) keys += ".a";
+  EXPECT_NE(message_of([&] { apply_override(config, keys + "=1", "--set"); }).find("key path"),
+            std::string::npos);
+  EXPECT_NE(message_of([&] {
+              apply_override(config, "x=" + std::string(60000, '[') + std::string(60000, ']'),
+                             "--set");
+            }).find("nested deeper"),
+            std::string::npos);
+}
+
+TEST(Config, DuplicateKeysAreRefusedWithTheirPath) {
+  const std::string msg = message_of([] {
+    parse_json_text(R"({"model": {"type": "bsms", "list": [{"x": 1, "x": 2}]}})", "t.json");
+  });
+  EXPECT_NE(msg.find("t.json: duplicate key 'model.list.0.x'"), std::string::npos) << msg;
+  EXPECT_NE(message_of([] {
+              parse_json_text(R"({"a": 1, "a": 1})", "t.json");
+            }).find("duplicate key 'a'"),
+            std::string::npos);
+  Json config = Json::object();
+  EXPECT_NE(message_of([&] {
+              apply_override(config, R"(m={"t": 1, "t": 2})", "--set");
+            }).find("duplicate key 't'"),
+            std::string::npos);
+  // Comments stay allowed in files; equal keys in different objects are fine.
+  EXPECT_NO_THROW(parse_json_text("{\"a\": {\"x\": 1}, // c\n \"b\": {\"x\": 2}}", "t.json"));
+}
+
+TEST(Config, MessagesDescribeValuesWithoutDumpingThem) {
+  Json list = Json::array();
+  for (int i = 0; i < 500000; ++i) list.push_back(i);
+  const Json j = {{"steps", list}, {"name", std::string(100000, 'x')}, {"model", list}};
+  JsonObjectReader r(j, {"t.json", ""});
+  const std::string steps = message_of([&] { r.get<int>("steps"); });
+  EXPECT_EQ(steps, "t.json: key 'steps' must be an integer, got a list of 500000 elements");
+  const std::string name = message_of([&] { r.get<double>("name"); });
+  EXPECT_LT(name.size(), 120u) << name;
+  EXPECT_NE(name.find("the string \"xxxx"), std::string::npos) << name;
+  const std::string model = message_of([&] { JsonObjectReader(j["model"], {"t.json", "model"}); });
+  EXPECT_EQ(model, "t.json: key 'model' must be a JSON object, got a list of 500000 elements");
+  EXPECT_EQ(describe_json(Json::object()), "an object of 0 keys");
+  EXPECT_EQ(describe_json(Json(1.5)), "1.5");
+  EXPECT_EQ(truncate_for_message("\xc3\xa9\xc3\xa9", 3), "\xc3\xa9...");  // never half a character
+}
+
+TEST(Config, OnlyRegularFilesAreRead) {
+  EXPECT_NE(message_of([] { load_json_file("/dev/zero"); }).find("a character device"),
+            std::string::npos);
+  const auto dir = std::filesystem::temp_directory_path();
+  EXPECT_NE(message_of([&] { load_json_file(dir.string()); }).find("a folder"), std::string::npos);
+  const auto fifo = dir / "bsms_config_test.fifo";
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  // Refused before it is opened: no writer ever comes, so opening it would block.
+  EXPECT_NE(message_of([&] { load_json_file(fifo.string()); }).find("a named pipe"),
+            std::string::npos);
+  std::filesystem::remove(fifo);
+  const auto big = write_temp("bsms_big.json", "{\"a\": \"" + std::string(2000, 'x') + "\"}");
+  EXPECT_NE(message_of([&] { load_json_file(big, "config file", 1000); }).find("larger than 1000"),
+            std::string::npos);
+  EXPECT_EQ(read_text_file(big, 5000, "text").size(), 2009u);
+}
+
+TEST(Config, OneLineEscapesControlCharactersAndCapsTheLength) {
+  EXPECT_EQ(one_line("a\nb\tc\rd\x1b[31me\x7f\x01"), "a\\nb\\tc\\rd\\x1b[31me\\x7f\\x01");
+  EXPECT_EQ(one_line("caf\xc3\xa9 \xe2\x80\xa6"), "caf\xc3\xa9 \xe2\x80\xa6");  // UTF-8 kept
+  EXPECT_EQ(one_line(std::string("\xc2\x9b") + "2J"), "\\xc2\\x9b2J");          // a C1 control
+  EXPECT_EQ(one_line("bad \xff\xc3"), "bad \\xff\\xc3");                        // not UTF-8
+  const std::string capped = one_line(std::string(5000, 'x'));
+  EXPECT_EQ(capped.size(), 2000u + 3u);
+  EXPECT_EQ(capped.substr(2000), "\xe2\x80\xa6");
 }
 
 }  // namespace

@@ -194,6 +194,35 @@ TEST(RolloutMetricsFile, ReaderIsStrictAndNamesFileAndKey) {
   EXPECT_NE(metrics_error(no_symmetry).find("'symmetries'"), std::string::npos);
 }
 
+// Every number is checked where it is read: RMSEs, times, counts and fractions out of their
+// range name the file and the field.
+TEST(RolloutMetricsFile, NumbersOutOfRangeNameTheField) {
+  const Json good = to_json(lagrangian_metrics());
+  const auto refused = [&](const std::string& pointer, const Json& value, const std::string& key) {
+    Json bad = good;
+    bad[Json::json_pointer(pointer)] = value;
+    const std::string e = metrics_error(bad);
+    EXPECT_NE(e.find("RUN/rollout/metrics.json: key '" + key + "'"), std::string::npos)
+        << pointer << ": " << e;
+  };
+  refused("/rmse_all/world_pos", -0.5, "rmse_all.world_pos");
+  refused("/rmse_1/total", -1e-9, "rmse_1.total");
+  refused("/rmse_per_step/world_pos/1", -2.0, "rmse_per_step.world_pos.1");
+  refused("/rmse_all_constant_velocity", -1.0, "rmse_all_constant_velocity");
+  refused("/inverted_cells_max", 1.5, "inverted_cells_max");
+  refused("/inverted_cells_per_step/0", -0.1, "inverted_cells_per_step.0");
+  refused("/infer_ms_per_step", -3.0, "infer_ms_per_step");
+  refused("/num_trajectories", -1, "num_trajectories");
+  refused("/levels", 0, "levels");
+  refused("/per_trajectory/rmse_all/0", -1.0, "per_trajectory.rmse_all.0");
+  const std::string e = [&] {
+    Json bad = good;
+    bad["rmse_all"]["world_pos"] = -0.5;
+    return metrics_error(bad);
+  }();
+  EXPECT_NE(e.find("must be a number >= 0 or null, got -0.5"), std::string::npos) << e;
+}
+
 // The bootstrap against its exact distribution: with 3 trajectories there are 27 equally likely
 // ordered draws, so the interval's ends are quantiles of 27 known ratios.
 TEST(BootstrapRatioInterval, MatchesTheExactDistributionOnSmallInputs) {

@@ -99,6 +99,18 @@ TEST(TrainStatsFile, BadFilesNameTheKey) {
   EXPECT_NE(stats_error(Json::array()).find("RUN/train_stats.json"), std::string::npos);
   EXPECT_EQ(stats_error(good), "no error");
   EXPECT_THROW(read_train_stats("/nonexistent/train_stats.json"), InputError);
+  // Numbers out of their range, named with the file and the field.
+  for (const char* key : {"train_ms_per_step", "peak_rss_mb_train", "wall_s", "final_loss", "steps",
+                          "num_parameters", "allreduce_ms_per_step"}) {
+    Json negative = good;
+    negative[key] = -1;
+    EXPECT_NE(stats_error(negative).find("RUN/train_stats.json: key '" + std::string(key) + "'"),
+              std::string::npos)
+        << key << ": " << stats_error(negative);
+  }
+  Json no_threads = good;
+  no_threads["threads"] = 0;
+  EXPECT_NE(stats_error(no_threads).find("'threads'"), std::string::npos);
 }
 
 }  // namespace

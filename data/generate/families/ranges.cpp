@@ -15,7 +15,7 @@ Range range_from(const Json& j, const JsonContext& ctx, Sign sign) {
     r.min = j[0].get<double>();
     r.max = j[1].get<double>();
   } else {
-    throw InputError(ctx.where() + " must be a number or [min, max], got " + j.dump());
+    throw InputError(ctx.where() + " must be a number or [min, max], got " + describe_json(j));
   }
   require(std::isfinite(r.min) && std::isfinite(r.max), ctx, "finite");
   if (r.min > r.max) {
@@ -44,7 +44,7 @@ IntRange read_int_range(JsonObjectReader& r, const std::string& key, int64_t low
     out.max = j[1].get<int64_t>();
   } else {
     throw InputError(ctx.where() + " must be an integer or [min, max] of integers, got " +
-                     j.dump());
+                     describe_json(j));
   }
   if (out.min > out.max)
     throw InputError(ctx.where() + ": min " + std::to_string(out.min) + " > max " +

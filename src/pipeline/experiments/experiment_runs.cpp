@@ -56,8 +56,14 @@ SplitStats split_stats(const std::string& dir, const std::string& split) {
     // The generator redraws a scene the solver stopped on; `attempt` > 0 records that.
     const std::string p = data.parameters(t);
     if (!p.empty() && p.front() == '{') {
-      const Json j = Json::parse(p, nullptr, false);
-      if (j.is_object() && j.value("attempt", 0) > 0) ++s.redrawn;
+      Json j;
+      try {
+        j = parse_json_text(p, data.location() + ": trajectory parameters");
+      } catch (const InputError&) {
+        continue;  // counted as drawn once: the statistic is informative only
+      }
+      const Json attempt = j.is_object() ? j.value("attempt", Json(0)) : Json(0);
+      if (attempt.is_number() && attempt.get<double>() > 0) ++s.redrawn;
     }
   }
   return s;

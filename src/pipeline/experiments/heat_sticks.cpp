@@ -33,6 +33,10 @@ namespace {
 
 constexpr int64_t kMaxNodes = 100000;
 constexpr int64_t kMaxLatent = 4096;
+// The gap in units of dx: far beyond a stick's length (kMaxNodes dx) it tests nothing more, and
+// the test sticks' coordinates must stay in the proximity grid's range (checked only after
+// training otherwise).
+constexpr double kMaxGapDx = 1e6;
 // Losses averaged for the reported final training loss.
 constexpr int64_t kFinalLossSteps = 100;
 
@@ -173,9 +177,9 @@ void validate(const HeatSticksOptions& o) {
                      std::to_string(o.nodes) + ": at most " + std::to_string(most) +
                      " levels keep 2 or more nodes on the coarsest bi-stride level");
   }
-  if (!(o.gap > 0.0) || !std::isfinite(o.gap)) {
-    throw InputError("--gap (in units of dx) must be a positive number, got " +
-                     format_number(o.gap));
+  if (!(o.gap > 0.0) || !(o.gap <= kMaxGapDx)) {
+    throw InputError("--gap (in units of dx) must be a number in (0, " + format_number(kMaxGapDx) +
+                     "], got " + format_number(o.gap));
   }
   if (o.latent < 1 || o.latent > kMaxLatent) {
     throw InputError("--latent must be in [1, " + std::to_string(kMaxLatent) + "], got " +

@@ -8,6 +8,7 @@
 #include <iomanip>
 #include <iostream>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -26,6 +27,21 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
   const auto runs = run_infos(request);
   const fs::path out = make_out(request);
   const SplitStats lng = split_stats(long_data, request.split);
+  // Every dataset and horizon checked before the first rollout.
+  std::optional<SplitStats> hard;
+  if (!hard_data.empty()) hard = split_stats(hard_data, request.split);
+  std::vector<SplitStats> trains;
+  for (const auto& run : runs) {
+    const SplitStats train = split_stats(run.data, "train");
+    const size_t horizon = static_cast<size_t>(train.min_frames - 2);  // predicted steps
+    const size_t steps = static_cast<size_t>(lng.min_frames - 2);
+    if (steps < 10 * horizon)
+      throw InputError(long_data + ": trajectories of " + std::to_string(lng.min_frames) +
+                       " frames give " + std::to_string(steps) +
+                       " predicted steps, fewer than 10x the training horizon of " + run.dir +
+                       " (" + std::to_string(horizon) + " steps)");
+    trains.push_back(train);
+  }
   Json result = {{"experiment", "long-rollout"}, {"long", stats_json(lng)}};
   std::vector<Curve> rmse_curves, inverted_curves, overlap_curves;
   std::ostringstream table;
@@ -35,16 +51,11 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
            "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   Json per_run = Json::array();
   size_t horizon_marker = 0;
-  for (const auto& run : runs) {
-    const SplitStats train = split_stats(run.data, "train");
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const RunInfo& run = runs[i];
+    const SplitStats& train = trains[i];
     const size_t horizon = static_cast<size_t>(train.min_frames - 2);  // predicted steps
     horizon_marker = std::max(horizon_marker, horizon);
-    const size_t steps = static_cast<size_t>(lng.min_frames - 2);
-    if (steps < 10 * horizon)
-      throw InputError(long_data + ": trajectories of " + std::to_string(lng.min_frames) +
-                       " frames give " + std::to_string(steps) +
-                       " predicted steps, fewer than 10x the training horizon of " + run.dir +
-                       " (" + std::to_string(horizon) + " steps)");
     const RolloutMetrics m = run_rollout(request, run, long_data, "", "long");
     Json row = {{"run", run.dir},
                 {"model", run.model},
@@ -103,9 +114,8 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
      << "![inverted cells](plots/long_inverted.png)\n\n"
      << (overlap_curves.empty() ? "" : "![overlap between bodies](plots/long_overlap.png)\n\n");
 
-  if (!hard_data.empty()) {
-    const SplitStats hard = split_stats(hard_data, request.split);
-    result["hard"] = stats_json(hard);
+  if (hard) {
+    result["hard"] = stats_json(*hard);
     std::vector<Curve> hard_curves;
     std::ostringstream hard_table;
     hard_table
@@ -134,10 +144,10 @@ Json long_rollout_experiment(const HardCaseRequest& request, const std::string& 
     result["hard_runs"] = hard_runs;
     plot_curves(plots, "hard_rmse", "Rollout RMSE on the solver's hard scenes", "RMSE (m)", true,
                 hard_curves);
-    md << "### Hard scenes\n\nRollouts on `" << hard_data << "` (" << hard.trajectories
-       << " trajectories, " << hard.min_nodes << "–" << hard.max_nodes
+    md << "### Hard scenes\n\nRollouts on `" << hard_data << "` (" << hard->trajectories
+       << " trajectories, " << hard->min_nodes << "–" << hard->max_nodes
        << " nodes), scenes outside the training distribution that are hard for the solver too; "
-       << hard.redrawn << " drawn scene(s) stopped the solver and were redrawn.\n\n"
+       << hard->redrawn << " drawn scene(s) stopped the solver and were redrawn.\n\n"
        << hard_table.str() << "\n![hard RMSE](plots/hard_rmse.png)\n\n";
   }
   write_text_atomic((out / "long_rollout.md").string(), md.str());

@@ -381,7 +381,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
     throw InputError("--centre / --rotation: must be finite");
   for (const std::string& assignment : o.solver_set)
     if (assignment.rfind("scene.", 0) != 0 || assignment.find('=') == std::string::npos)
-      throw InputError("--solver-set " + assignment +
+      throw InputError("--solver-set " + truncate_for_message(assignment, 80) +
                        ": expected scene.KEY=VALUE (a key of the family's scene, e.g. "
                        "scene.background.element_size=0.041)");
 
@@ -418,15 +418,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   if (!fs::exists(manifest))
     throw InputError(manifest.string() +
                      ": missing; the experiment re-solves trajectories written by bsms generate");
-  Json gen;
-  {
-    std::ifstream in(manifest);
-    try {
-      in >> gen;
-    } catch (const std::exception& e) {
-      throw InputError(manifest.string() + ": not JSON (" + e.what() + ")");
-    }
-  }
+  const Json gen = load_json_file(manifest.string(), "generate manifest");
   if (!gen.contains("config") || !gen["config"].is_object())
     throw InputError(manifest.string() + ": key config: expected the family config object");
   // --solver-set: the family as stored, altered (the re-solve's reference, kicked or not).
@@ -458,18 +450,18 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   for (int64_t t = 0; t < count; ++t) {
     StoredTrajectory& st = stored[static_cast<size_t>(t)];
     const std::string where = data.location() + ": trajectory " + std::to_string(t);
-    Json p;
+    const Json p = parse_json_text(data.parameters(t), where + ": parameters");
     try {
-      p = Json::parse(data.parameters(t));
       st.run_seed = p.at("run_seed").get<int64_t>();
       st.index = p.at("index").get<int64_t>();
       st.attempt = p.at("attempt").get<int>();
-    } catch (const std::exception& e) {
-      throw InputError(where +
-                       ": parameters lack the draw (run_seed, index, attempt): " + e.what());
+    } catch (const Json::exception& e) {
+      throw InputError(where + ": parameters lack the draw (run_seed, index, attempt): " +
+                       truncate_for_message(e.what(), 120));
     }
-    if (p.value("family", "") != family.family)
-      throw InputError(where + ": family " + p.value("family", "?") + ", generate.json's is " +
+    const Json drawn_family = p.value("family", Json(""));
+    if (!drawn_family.is_string() || drawn_family.get<std::string>() != family.family)
+      throw InputError(where + ": family " + describe_json(drawn_family) + ", generate.json's is " +
                        family.family);
     st.frames = data.num_frames(t);
     if (st.frames < 3) throw InputError(where + ": fewer than 3 frames");

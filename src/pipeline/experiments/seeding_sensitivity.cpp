@@ -38,6 +38,10 @@ Json seeding_experiment(const HardCaseRequest& request, const std::string& data)
     md << "Test set: `" << data << "` (" << s.trajectories << " trajectories, " << s.min_nodes
        << "–" << s.max_nodes << " nodes).\n\n";
   }
+  // Each run's own test data opened before the first rollout (a broken one is found now).
+  if (data.empty())
+    for (const auto& run : runs)
+      if (run.model == "bsms") (void)Dataset::open_split(run.data, request.split);
   std::vector<Curve> curves;
   for (const auto& run : runs) {
     if (run.model != "bsms") {

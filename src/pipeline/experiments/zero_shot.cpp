@@ -36,9 +36,10 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
   int64_t train_max = 0;
   Json per_run = Json::array();
   std::vector<std::pair<RunInfo, std::pair<double, double>>> rmse_all;  // own, larger meshes
+  // Every run's training meshes against the larger ones before the first rollout.
+  std::vector<SplitStats> trains;
   for (const auto& run : runs) {
     const SplitStats train = split_stats(run.data, "train");
-    train_max = std::max(train_max, train.max_nodes);
     const double ratio =
         static_cast<double>(large.min_nodes) / static_cast<double>(train.max_nodes);
     if (ratio < min_ratio)
@@ -47,6 +48,14 @@ Json zero_shot_experiment(const HardCaseRequest& request, const std::string& dat
                        "x the largest training mesh of " + run.dir + " (" +
                        std::to_string(train.max_nodes) +
                        "); expected >= " + format_number(min_ratio, 1, Notation::kFixed) + "x");
+    trains.push_back(train);
+  }
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const RunInfo& run = runs[i];
+    const SplitStats& train = trains[i];
+    train_max = std::max(train_max, train.max_nodes);
+    const double ratio =
+        static_cast<double>(large.min_nodes) / static_cast<double>(train.max_nodes);
     const RolloutMetrics own = run_rollout(request, run, run.data, "", "own");
     const RolloutMetrics big = run_rollout(request, run, data, "", "large");
     per_run.push_back({{"run", run.dir},
