@@ -6,6 +6,7 @@
 // Exit status 0 when the result is written; anything else (a script's Exit included) means no
 // result, which bsms reports.
 #include <errno.h>
+#include <omp.h>
 #include <signal.h>
 #include <stddef.h>
 #include <sys/prctl.h>
@@ -20,11 +21,15 @@
 #include <linux/seccomp.h>
 #endif
 
+#include <atomic>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <new>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/error.hpp"
@@ -42,6 +47,16 @@
 namespace {
 
 constexpr int kResultFd = 3;
+
+// The result is written once, by whichever of the reading, std::terminate or the memory watch
+// comes first.
+std::atomic<bool> answered{false};
+[[noreturn]] void answer(const bsms::GmshResult& result) {
+  if (answered.exchange(true)) {
+    for (;;) ::pause();  // the other writer ends the process
+  }
+  ::_exit(bsms::write_gmsh_result(kResultFd, result) ? 0 : 74);
+}
 
 [[noreturn]] void fail(const char* what) {
   const std::string line = std::string("bsms-gmsh-worker: ") + what + "\n";
@@ -199,7 +214,45 @@ bool install_sandbox() {
   } else {
     result.message = "terminate without an exception";
   }
-  ::_exit(bsms::write_gmsh_result(kResultFd, result) ? 0 : 74);
+  answer(result);
+}
+
+#ifdef BSMS_WORKER_SANITIZED
+// Sanitizer builds cannot limit the address space (their shadow memory reserves terabytes): the
+// memory limit is watched on the resident size instead, every 20 ms.
+void watch_memory(unsigned long long limit) {
+  std::thread([limit] {
+    const long page = ::sysconf(_SC_PAGESIZE);
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      long total = 0, resident = 0;
+      if (std::FILE* f = std::fopen("/proc/self/statm", "r")) {
+        if (std::fscanf(f, "%ld %ld", &total, &resident) != 2) resident = 0;
+        std::fclose(f);
+      }
+      if (static_cast<unsigned long long>(resident) * static_cast<unsigned long long>(page) >
+          limit) {
+        bsms::GmshResult result;
+        result.status = bsms::GmshResult::Status::OutOfMemory;
+        answer(result);
+      }
+    }
+  }).detach();
+}
+#endif
+
+// OpenMP runtimes start on first use. LLVM's libomp then registers itself in
+// /dev/shm/__KMP_REGISTERED_LIB_<pid>_<uid>: the sandbox would refuse that file (and libomp abort),
+// and the worker's _exit would leave it behind. Started here, before the sandbox; the file is
+// removed at once (libomp reads it only when a second copy of itself loads, which never happens
+// here). libgomp (GCC) makes no such file.
+void start_openmp() {
+#pragma omp parallel num_threads(1)
+  {}
+  char name[96];
+  std::snprintf(name, sizeof name, "/dev/shm/__KMP_REGISTERED_LIB_%d_%d",
+                static_cast<int>(::getpid()), static_cast<int>(::getuid()));
+  ::unlink(name);
 }
 
 unsigned long long number(const char* text, const char* what) {
@@ -247,8 +300,9 @@ int main(int argc, char** argv) {
 #ifndef BSMS_WORKER_SANITIZED
   if (memory > 0) set_limit(RLIMIT_AS, static_cast<rlim_t>(memory));
 #else
-  (void)memory;  // sanitizers reserve terabytes of shadow address space: no limit there
+  if (memory > 0) watch_memory(memory);
 #endif
+  start_openmp();
   if (!allow_commands) install_sandbox();  // where the kernel refuses, geo_scan's check remains
   std::set_terminate(on_terminate);
 
@@ -268,5 +322,5 @@ int main(int argc, char** argv) {
     result.message = "an exception that is not a std::exception";
   }
   // _exit: gmsh's own teardown is of no use here (and libgmsh 4.8 can crash in it).
-  ::_exit(bsms::write_gmsh_result(kResultFd, result) ? 0 : 74);
+  answer(result);
 }
