@@ -70,9 +70,7 @@ bench: build
 # build-fuzz/fuzz/fuzz_gmsh_mesh (extract_mesh through a gmsh model) is built but not run here:
 # libgmsh 4.8 itself crashes after a few thousand models in one process (fuzz/fuzz_mesh.cpp).
 FUZZ_SECONDS ?= 120
-FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_tfrecord
-# JSON intake: the one JSON reader and the one-line message printer (fuzz_json).
-FUZZ_TARGETS += fuzz_json
+FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_tfrecord fuzz_json fuzz_geo
 ifneq ($(origin FUZZ_SECONDS),command line)
 FUZZ_SECONDS_fuzz_config ?= 360
 FUZZ_SECONDS_fuzz_multilevel ?= 3000
@@ -80,6 +78,9 @@ FUZZ_SECONDS_fuzz_dataset ?= 3000
 FUZZ_SECONDS_fuzz_tfrecord ?= 480
 FUZZ_SECONDS_fuzz_msh ?= 60
 FUZZ_SECONDS_fuzz_json ?= 360
+# gmsh scripts: fuzz_geo, the check of .geo scripts before they run (~0.5-1.2k/s), seeded from
+# configs/geometry and its own seeds
+FUZZ_SECONDS_fuzz_geo ?= 900
 endif
 FUZZ_MAX_LEN_fuzz_config := 8192
 FUZZ_MAX_LEN_fuzz_multilevel := 4096
@@ -88,6 +89,7 @@ FUZZ_MAX_LEN_fuzz_mesh := 2048
 FUZZ_MAX_LEN_fuzz_msh := 8192
 FUZZ_MAX_LEN_fuzz_tfrecord := 262144
 FUZZ_MAX_LEN_fuzz_json := 65536
+FUZZ_MAX_LEN_fuzz_geo := 4096
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev"
@@ -106,6 +108,8 @@ fuzz: deps
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_json/meta_$$(basename $$d).json; done
 	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_json; do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
+	BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/fuzz_geo build-fuzz/fuzz/fuzz_geo && \
+	  cp configs/geometry/*.geo $(FUZZ_CORPUS)/fuzz_geo/
 	for d in tests/fixtures/meshgraphnets/*; do n=$$(basename $$d); \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_tfrecord/meta_$$n.json; \
 	  cp $$d/test.tfrecord $(FUZZ_CORPUS)/fuzz_tfrecord/$$n.tfrecord; done

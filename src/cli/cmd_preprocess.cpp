@@ -29,6 +29,7 @@ struct PreprocessOptions {
   std::string thinning = "auto";
   uint64_t seed = 0;
   int threads = 0;
+  bsms::cli::GeoOptions geo;
 };
 
 int parse_levels(const std::string& text) {
@@ -196,5 +197,9 @@ BSMS_COMMAND(
           ->check(CLI::NonNegativeNumber)
           ->default_val(0);
       bsms::cli::add_threads_option(sub, options->threads);
-      sub.callback([options] { run_preprocess(*options); });
+      bsms::cli::add_geo_options(sub, options->geo);
+      sub.callback([options] {
+        options->geo.apply();
+        run_preprocess(*options);
+      });
     });

@@ -16,6 +16,7 @@ struct SimulateOptions {
   std::string out;
   std::vector<std::string> sets;
   int threads = 0;
+  bsms::cli::GeoOptions geo;
 };
 
 }  // namespace
@@ -29,7 +30,9 @@ BSMS_COMMAND(
           ->required();
       bsms::cli::add_set_option(sub, options->sets);
       bsms::cli::add_threads_option(sub, options->threads);
+      bsms::cli::add_geo_options(sub, options->geo);
       sub.callback([options] {
+        options->geo.apply();
         const bsms::mpm::Scene scene = bsms::mpm::load_scene(options->scene, options->sets);
         // Refused before any work: a size typo, an output folder that cannot be created (made
         // now, and removed again if the run fails).

@@ -29,6 +29,18 @@ std::vector<std::string>& program_arguments();
 void add_threads_option(CLI::App& sub, int& threads);
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets);
 
+// Options of the subcommands that read a mesh file the user names, which may be a gmsh script
+// (preprocess --mesh, scenes' mesh bodies and backgrounds in simulate): --geo-time-limit,
+// --geo-memory-limit and --allow-geo-commands (core/gmsh_worker.hpp). apply() sets them
+// process-wide over BSMS_GEO_TIME_LIMIT / BSMS_GEO_MEMORY_LIMIT; call it before reading.
+struct GeoOptions {
+  double time_limit_s = 0.0;      // 0: the environment's or 120 s
+  double memory_limit_gib = 0.0;  // 0: the environment's or half the machine's memory
+  bool allow_commands = false;
+  void apply() const;
+};
+void add_geo_options(CLI::App& sub, GeoOptions& options);
+
 // Throws InputError (exit 2) when the folder `dir` could not be created: it, or the nearest of
 // its ancestors that exists, is not a folder. Creates nothing, so a run refused later leaves no
 // empty output folder behind.

@@ -13,6 +13,7 @@
 
 #include "cli/command.hpp"
 #include "core/error.hpp"
+#include "core/gmsh_worker.hpp"
 #include "core/one_line.hpp"
 #include "core/runtime.hpp"
 
@@ -38,6 +39,48 @@ void add_threads_option(CLI::App& sub, int& threads) {
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets) {
   sub.add_option("--set", sets, "override a config value: key.path=value (repeatable)")
       ->type_name("KEY=VALUE");
+}
+
+namespace {
+
+// CLI11's number checks let NaN through (every comparison with it is false): a number > 0, finite,
+// at most `max`.
+CLI::Validator positive_at_most(double max, const std::string& unit) {
+  return CLI::Validator(
+      [max, unit](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size() || !(v > 0.0 && v <= max))
+          return "'" + text.substr(0, 32) +
+                 "': expected a number > 0 and <= " + std::to_string(static_cast<long long>(max)) +
+                 " (" + unit + ")";
+        return "";
+      },
+      unit);
+}
+
+}  // namespace
+
+void add_geo_options(CLI::App& sub, GeoOptions& options) {
+  sub.add_option("--geo-time-limit", options.time_limit_s,
+                 "seconds gmsh may take to read and mesh one file (default 120, or "
+                 "BSMS_GEO_TIME_LIMIT)")
+      ->check(positive_at_most(1e7, "SECONDS"));
+  sub.add_option("--geo-memory-limit", options.memory_limit_gib,
+                 "GiB of memory gmsh may use on one file (default half the machine's memory, or "
+                 "BSMS_GEO_MEMORY_LIMIT)")
+      ->check(positive_at_most(1e6, "GIB"));
+  sub.add_flag("--allow-geo-commands", options.allow_commands,
+               "run the commands of .geo scripts that bsms refuses (SystemCall, Exit, Include, "
+               "Save, ...): at your own risk, only for scripts you trust");
+}
+
+void GeoOptions::apply() const {
+  GmshLimits limits = gmsh_limits_from_environment();
+  if (time_limit_s > 0.0) limits.time_limit_s = time_limit_s;
+  if (memory_limit_gib > 0.0) limits.memory_limit_gib = memory_limit_gib;
+  limits.allow_geo_commands = allow_commands;
+  set_gmsh_limits(limits);
 }
 
 void require_creatable_dir(const std::string& dir) {

@@ -30,4 +30,10 @@ class GmshSession {
   std::unique_ptr<Lock> lock_;
 };
 
+// Reads `path` with the gmsh library in this process (a geometry is meshed first, as
+// read_mesh_with_gmsh says). This is the gmsh worker's work (gmsh_worker.hpp): everything else
+// calls read_mesh_with_gmsh, which runs it in a child process with limits. The caller has checked
+// that the file exists and, for a script, its commands.
+Mesh read_mesh_with_gmsh_here(const std::string& path);
+
 }  // namespace bsms

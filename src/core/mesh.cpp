@@ -9,11 +9,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
-#include <fstream>
 #include <functional>
 #include <limits>
 #include <mutex>
+#include <new>
 #include <numeric>
 #include <stdexcept>
 #include <unordered_map>
@@ -23,7 +22,6 @@
 #include "core/msh_reader.hpp"
 
 namespace bsms {
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -62,6 +60,8 @@ void refuse_huge_geometry(const std::string& path) {
   if (dim < 2) return;
   try {
     gmsh::model::mesh::generate(1);
+  } catch (const std::bad_alloc&) {
+    throw;  // the gmsh worker's memory limit, reported as such
   } catch (const std::exception& e) {
     throw InputError(path + ": gmsh failed to mesh the curves of this geometry (" +
                      std::string(e.what()) + ")");
@@ -127,6 +127,8 @@ GmshSession::GmshSession() : lock_(std::make_unique<Lock>()) {
   }
   gmsh::option::setNumber("General.Terminal", 0);
   gmsh::option::setNumber("General.Verbosity", 1);
+  // gmsh asks questions (GetValue, "uncompress this file?") on stdin unless told not to.
+  gmsh::option::setNumber("General.NoPopup", 1);
   gmsh::clear();
 }
 
@@ -380,49 +382,24 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
   return mesh;
 }
 
-namespace {
-
-// The checks every mesh file passes before it is parsed (their messages are part of the CLI).
-void check_mesh_file(const std::string& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError(path + ": mesh file not found");
-  if (fs::is_directory(path, ec)) throw InputError(path + ": is a folder, expected a mesh file");
-  std::ifstream probe(path);
-  if (!probe) throw InputError(path + ": mesh file is not readable");
-  if (fs::file_size(path, ec) == 0) throw InputError(path + ": mesh file is empty");
-}
-
-// The first bytes of a file (enough for its $MeshFormat line).
-std::string file_head(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string head(4096, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(in.gcount()));
-  return head;
-}
-
-}  // namespace
-
-Mesh read_mesh(const std::string& path) {
-  check_mesh_file(path);
-  if (is_direct_msh(file_head(path))) {
-    try {
-      return read_msh(path);
-    } catch (const MshNotHandled&) {
-      // Valid MSH with a feature the direct reader leaves to gmsh (documented in mesh.hpp).
-    }
-  }
-  return read_mesh_with_gmsh(path);
-}
-
-Mesh read_mesh_with_gmsh(const std::string& path) {
-  check_mesh_file(path);
+Mesh read_mesh_with_gmsh_here(const std::string& path) {
   GmshSession session;
   try {
     gmsh::open(path);
+  } catch (const std::bad_alloc&) {
+    throw;  // the gmsh worker's memory limit, reported as such
   } catch (...) {
+    // gmsh's own words (a script's syntax error names its line), cut to one short line.
+    std::string why;
+    try {
+      gmsh::logger::getLastError(why);
+    } catch (...) {
+    }
+    std::replace(why.begin(), why.end(), '\n', ' ');
+    if (why.size() > 200) why = why.substr(0, 200) + "...";
     session.reset();
-    throw InputError(path + ": gmsh cannot read this mesh (malformed or truncated?)");
+    throw InputError(path + ": gmsh cannot read this file" +
+                     (why.empty() ? std::string(" (malformed or truncated?)") : " (" + why + ")"));
   }
   gmsh::vectorpair entities;
   gmsh::model::getEntities(entities);
@@ -435,6 +412,8 @@ Mesh read_mesh_with_gmsh(const std::string& path) {
     refuse_huge_geometry(path);
     try {
       gmsh::model::mesh::generate(gmsh::model::getDimension());
+    } catch (const std::bad_alloc&) {
+      throw;
     } catch (const std::exception& e) {
       throw InputError(path + ": gmsh failed to mesh this geometry (" + std::string(e.what()) +
                        ")");

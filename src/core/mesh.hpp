@@ -41,6 +41,8 @@ Mesh read_mesh(const std::string& path);
 // Reads a mesh with the gmsh library (any format gmsh reads). A geometry file (.geo, .step,
 // .brep) is meshed first with its highest dimension, unless its element size would give more
 // than kMaxGeometryNodes nodes (InputError with the estimate). The semantics are assemble_mesh's.
+// gmsh runs in a child process, the gmsh worker (gmsh_worker.hpp), under a time and a memory limit;
+// a script's commands that reach outside the model are refused first (geo_scan.hpp).
 Mesh read_mesh_with_gmsh(const std::string& path);
 
 // A mesh in gmsh's terms, as a gmsh model or an MSH file holds it, before bsms' rules apply.

@@ -41,6 +41,26 @@ flip() {  # flip the low bit of byte $2 of file $1
 
 truncate_half() { truncate -s $(($(stat -c %s "$1") / 2)) "$1"; }
 
+# gmsh scripts (.geo), for the cases under "gmsh scripts" in the table: commands bsms refuses
+# (the SystemCall would make $in/geo_pwned, which the cases require absent), a loop that never
+# ends, a transfinite curve of 3e7 points, a syntax error, an Include of a script with a command.
+setup_geo() {
+  printf 'Point(1) = {0, 0, 0, 0.1};\nExit;\n' >geo_exit.geo
+  printf 'Point(1) = {0, 0, 0, 0.1};\nSystemCall "touch %s/geo_pwned";\n' "$in" >geo_systemcall.geo
+  printf 'For i In {1:1e12}\n  x = i;\nEndFor\n' >geo_loop.geo
+  cat >geo_transfinite.geo <<'EOF'
+Point(1) = {0, 0, 0}; Point(2) = {1, 0, 0}; Point(3) = {1, 1, 0};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 1};
+Curve Loop(1) = {1, 2, 3}; Plane Surface(1) = {1};
+Transfinite Curve{1} = 3e7;
+EOF
+  printf 'Point(1) = {0, 0, 0, 0.1};\nPoint(2) = {1, 0, 0, 0.1;\n' >geo_syntax.geo
+  printf 'lc = 0.1;\nInclude "geo_included.geo";\n' >geo_include.geo
+  printf 'SystemCall "touch %s/geo_pwned";\n' "$in" >geo_included.geo
+  sed 's/nan.msh/geo_systemcall.geo/' scene_nan_mesh.json >scene_geo_systemcall.json
+  sed 's/nan.msh/geo_loop.geo/' scene_nan_mesh.json >scene_geo_loop.json
+}
+
 setup() {
   set -e
   local in=$work/in tmp=$work/in.tmp
@@ -131,6 +151,7 @@ EOF
     | sed 's/nan.msh/good.msh/' >scene_unknown_key.json
   sed 's/nan.msh/no_such_mesh.msh/' scene_nan_mesh.json >scene_missing_mesh.json
   sed 's/"end_time": 0.01/"end_time": -1/; s/nan.msh/good.msh/' scene_nan_mesh.json >scene_negative_time.json
+  setup_geo
   # Training configs, each with one defect.
   local base='"steps": 3, "valid_every": 2, "valid_samples": 2, "normalizer_steps": 2, "model": {"type": "bsms", "latent": 8, "levels": 2}'
   printf '{"data": "%s", %s, "seed": -1}\n' "$in/data" "$base" >train_seed_negative.json
