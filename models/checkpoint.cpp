@@ -312,12 +312,14 @@ CheckpointContents read_contents(const Reader& r) {
     if (!(m == "model" || (c.training && m == "optimizer")))
       r.fail(m, "is not part of a " + kind + " checkpoint (unexpected entry)");
 
-  std::map<std::string, torch::Tensor> model;
-  for (const auto& m : r.members(kModel)) {
-    torch::Tensor t = r.tensor(std::string(kModel) + "/" + m);
-    c.model.push_back({m, t});
-    model.emplace(m, t);
-  }
+  // The entry count, stored apart from the group's index, names a lost or added entry even
+  // without a model to compare with (bsms info).
+  const std::vector<std::string> entries = r.members(kModel);
+  const int64_t count = r.int_attr(kModel, "count");
+  if (count != static_cast<int64_t>(entries.size()))
+    r.fail("model", "has " + std::to_string(entries.size()) + " entries, its count says " +
+                        std::to_string(count) + " (an entry lost or added)");
+  for (const auto& m : entries) c.model.push_back({m, r.tensor(std::string(kModel) + "/" + m)});
   if (!c.training) return c;
 
   TrainingState& s = c.state;
@@ -368,14 +370,18 @@ CheckpointContents read_contents(const Reader& r) {
     if (!expected_members.count(m)) r.fail("optimizer/" + m, "is not part of an optimizer");
 
   std::vector<std::pair<int64_t, std::string>> indices;
-  for (const auto& m : r.members(kState)) {
+  const std::vector<std::string> states = r.members(kState);
+  const int64_t state_count = r.int_attr(kState, "count");
+  if (state_count != static_cast<int64_t>(states.size()))
+    r.fail("optimizer/state", "has " + std::to_string(states.size()) + " entries, its count says " +
+                                  std::to_string(state_count) + " (an entry lost or added)");
+  for (const auto& m : states) {
     if (!is_index(m) || std::stoll(m) >= total)
       r.fail("optimizer/state/" + clip(m),
              "is not a parameter index (the optimizer has " + std::to_string(total) + ")");
     indices.emplace_back(std::stoll(m), m);
   }
   std::sort(indices.begin(), indices.end());
-  std::set<std::string> named;
   for (const auto& [index, m] : indices) {
     const std::string object = std::string(kState) + "/" + m;
     const std::string entry = Reader::entry_of(object);
@@ -385,12 +391,6 @@ CheckpointContents read_contents(const Reader& r) {
     slot.index = index;
     slot.step = step;
     slot.parameter = f.attr_string(object, "parameter");
-    const auto it = model.find(slot.parameter);
-    if (it == model.end())
-      r.fail(entry,
-             "names parameter '" + clip(slot.parameter) + "', which the model has no entry of");
-    if (!named.insert(slot.parameter).second)
-      r.fail(entry, "names parameter '" + clip(slot.parameter) + "' a second time");
     const bool amsgrad = amsgrad_of[static_cast<size_t>(index)];
     const std::vector<std::string> present = r.members(object);
     for (const auto& p : present)
@@ -402,10 +402,6 @@ CheckpointContents read_contents(const Reader& r) {
       if (std::find(present.begin(), present.end(), field) == present.end())
         r.fail(entry + "/" + field, "is missing");
       torch::Tensor t = r.tensor(object + "/" + field);
-      if (t.sizes() != it->second.sizes() || t.scalar_type() != it->second.scalar_type())
-        r.fail(entry + "/" + field, "has shape " + shape_text(t.sizes(), t.scalar_type()) +
-                                        ", its parameter '" + clip(slot.parameter) + "' " +
-                                        shape_text(it->second.sizes(), it->second.scalar_type()));
       if (k > 0 && (t < 0).any().item<bool>())
         r.fail(entry + "/" + field, "has a negative value (a mean of squares)");
       (k == 0 ? slot.exp_avg : k == 1 ? slot.exp_avg_sq : slot.max_exp_avg_sq) = t;
@@ -413,6 +409,31 @@ CheckpointContents read_contents(const Reader& r) {
     c.slots.push_back(std::move(slot));
   }
   return c;
+}
+
+// Each optimizer state belongs to a distinct model entry and has its shape and dtype. (Apart
+// from read_contents so that a loader compares the model with the module first: a checkpoint of
+// another model is named by its model entries.)
+void check_slots(const Reader& r, const CheckpointContents& c) {
+  std::map<std::string, const torch::Tensor*> model;
+  for (const auto& t : c.model) model.emplace(t.name, &t.value);
+  std::set<std::string> named;
+  for (const AdamSlot& a : c.slots) {
+    const std::string entry = "optimizer/state/" + std::to_string(a.index);
+    const auto it = model.find(a.parameter);
+    if (it == model.end())
+      r.fail(entry, "names parameter '" + clip(a.parameter) + "', which the model has no entry of");
+    if (!named.insert(a.parameter).second)
+      r.fail(entry, "names parameter '" + clip(a.parameter) + "' a second time");
+    const torch::Tensor& p = *it->second;
+    for (const auto& [field, t] :
+         {std::make_pair("exp_avg", &a.exp_avg), std::make_pair("exp_avg_sq", &a.exp_avg_sq),
+          std::make_pair("max_exp_avg_sq", &a.max_exp_avg_sq)})
+      if (t->defined() && (t->sizes() != p.sizes() || t->scalar_type() != p.scalar_type()))
+        r.fail(entry + "/" + field, "has shape " + shape_text(t->sizes(), t->scalar_type()) +
+                                        ", its parameter '" + clip(a.parameter) + "' " +
+                                        shape_text(p.sizes(), p.scalar_type()));
+  }
 }
 
 }  // namespace
@@ -431,59 +452,86 @@ std::string read_checkpoint_bytes(const std::string& path) {
   return bytes;
 }
 
-void save_checkpoint_file(const std::string& path, const torch::nn::Module& module,
-                          const torch::optim::Adam* optimizer, const TrainingState* state) {
+CheckpointContents checkpoint_contents(const torch::nn::Module& module,
+                                       const torch::optim::Adam* optimizer,
+                                       const TrainingState* state) {
   if ((optimizer == nullptr) != (state == nullptr))
-    throw std::invalid_argument("save_checkpoint_file: optimizer and state go together");
+    throw std::invalid_argument("checkpoint_contents: optimizer and state go together");
+  CheckpointContents c;
+  for (const auto& [name, value] : module_entries(module)) c.model.push_back({name, value});
+  if (!optimizer) return c;
+  c.training = true;
+  c.state = *state;
+  const std::vector<std::string> names = optimizer_parameter_names(module, *optimizer);
+  int64_t index = 0;
+  for (const auto& group : optimizer->param_groups()) {
+    const auto& o = static_cast<const torch::optim::AdamOptions&>(group.options());
+    c.groups.push_back({o.lr(), std::get<0>(o.betas()), std::get<1>(o.betas()), o.eps(),
+                        o.weight_decay(), o.amsgrad(),
+                        static_cast<int64_t>(group.params().size())});
+    for (const auto& p : group.params()) {
+      const auto it = optimizer->state().find(impl_key(p));
+      if (it != optimizer->state().end()) {
+        const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
+        AdamSlot slot;
+        slot.index = index;
+        slot.parameter = names[static_cast<size_t>(index)];
+        slot.step = s.step();
+        slot.exp_avg = s.exp_avg();
+        slot.exp_avg_sq = s.exp_avg_sq();
+        if (o.amsgrad()) slot.max_exp_avg_sq = s.max_exp_avg_sq();
+        c.slots.push_back(std::move(slot));
+      }
+      ++index;
+    }
+  }
+  return c;
+}
+
+void write_checkpoint_contents(const std::string& path, const CheckpointContents& c) {
   AtomicOutput out(path);
   {
     H5File f = H5File::create_checksummed(out.temp_path());
     Writer w(f);
     f.set_attr("/", "format", std::string(kCheckpointFormat));
     f.set_attr("/", "version", kCheckpointVersion);
-    f.set_attr("/", "kind", std::string(optimizer ? "training" : "module"));
+    f.set_attr("/", "kind", std::string(c.training ? "training" : "module"));
     f.create_group(kModel);
-    for (const auto& [name, value] : module_entries(module)) {
-      if (name.find('/') != std::string::npos)
-        throw IoError(path + ": module entry '" + name + "' has a '/' in its name");
-      w.tensor(std::string(kModel) + "/" + name, value);
+    f.set_attr(kModel, "count", static_cast<int64_t>(c.model.size()));
+    for (const auto& t : c.model) {
+      if (t.name.empty() || t.name.find('/') != std::string::npos)
+        throw IoError(path + ": module entry '" + clip(t.name) + "' cannot be an HDF5 name");
+      w.tensor(std::string(kModel) + "/" + t.name, t.value);
     }
-    if (optimizer) {
-      f.set_attr("/", "step", state->step);
-      f.set_attr("/", "wall_s", state->wall_s);
-      f.set_attr("/", "loss", state->loss);
-      f.set_attr("/", "valid_loss", state->valid_loss);
-      f.set_attr("/", "valid_baseline", state->valid_baseline);
-      const std::vector<std::string> names = optimizer_parameter_names(module, *optimizer);
+    if (c.training) {
+      f.set_attr("/", "step", c.state.step);
+      f.set_attr("/", "wall_s", c.state.wall_s);
+      f.set_attr("/", "loss", c.state.loss);
+      f.set_attr("/", "valid_loss", c.state.valid_loss);
+      f.set_attr("/", "valid_baseline", c.state.valid_baseline);
       f.create_group(kState);
-      f.set_attr(kOptimizer, "groups", static_cast<int64_t>(optimizer->param_groups().size()));
-      size_t index = 0;
-      for (size_t g = 0; g < optimizer->param_groups().size(); ++g) {
-        const auto& group = optimizer->param_groups()[g];
-        const auto& o = static_cast<const torch::optim::AdamOptions&>(group.options());
+      f.set_attr(kState, "count", static_cast<int64_t>(c.slots.size()));
+      f.set_attr(kOptimizer, "groups", static_cast<int64_t>(c.groups.size()));
+      for (size_t g = 0; g < c.groups.size(); ++g) {
+        const AdamGroup& o = c.groups[g];
         const std::string object = std::string(kOptimizer) + "/group_" + std::to_string(g);
         f.create_group(object);
-        f.set_attr(object, "lr", o.lr());
-        f.set_attr(object, "beta1", std::get<0>(o.betas()));
-        f.set_attr(object, "beta2", std::get<1>(o.betas()));
-        f.set_attr(object, "eps", o.eps());
-        f.set_attr(object, "weight_decay", o.weight_decay());
-        f.set_attr(object, "amsgrad", static_cast<int64_t>(o.amsgrad()));
-        f.set_attr(object, "size", static_cast<int64_t>(group.params().size()));
-        for (const auto& p : group.params()) {
-          const auto it = optimizer->state().find(impl_key(p));
-          if (it != optimizer->state().end()) {
-            const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
-            const std::string entry = std::string(kState) + "/" + std::to_string(index);
-            f.create_group(entry);
-            f.set_attr(entry, "step", s.step());
-            f.set_attr(entry, "parameter", names[index]);
-            w.tensor(entry + "/exp_avg", s.exp_avg());
-            w.tensor(entry + "/exp_avg_sq", s.exp_avg_sq());
-            if (o.amsgrad()) w.tensor(entry + "/max_exp_avg_sq", s.max_exp_avg_sq());
-          }
-          ++index;
-        }
+        f.set_attr(object, "lr", o.lr);
+        f.set_attr(object, "beta1", o.beta1);
+        f.set_attr(object, "beta2", o.beta2);
+        f.set_attr(object, "eps", o.eps);
+        f.set_attr(object, "weight_decay", o.weight_decay);
+        f.set_attr(object, "amsgrad", static_cast<int64_t>(o.amsgrad));
+        f.set_attr(object, "size", o.size);
+      }
+      for (const AdamSlot& a : c.slots) {
+        const std::string entry = std::string(kState) + "/" + std::to_string(a.index);
+        f.create_group(entry);
+        f.set_attr(entry, "step", a.step);
+        f.set_attr(entry, "parameter", a.parameter);
+        w.tensor(entry + "/exp_avg", a.exp_avg);
+        w.tensor(entry + "/exp_avg_sq", a.exp_avg_sq);
+        if (a.max_exp_avg_sq.defined()) w.tensor(entry + "/max_exp_avg_sq", a.max_exp_avg_sq);
       }
     }
     f.close();
@@ -491,9 +539,16 @@ void save_checkpoint_file(const std::string& path, const torch::nn::Module& modu
   out.commit();
 }
 
+void save_checkpoint_file(const std::string& path, const torch::nn::Module& module,
+                          const torch::optim::Adam* optimizer, const TrainingState* state) {
+  write_checkpoint_contents(path, checkpoint_contents(module, optimizer, state));
+}
+
 CheckpointContents read_checkpoint_contents(const std::string& name, const std::string& bytes) {
   const Reader r(name, bytes);
-  return read_contents(r);
+  CheckpointContents c = read_contents(r);
+  check_slots(r, c);
+  return c;
 }
 
 TrainingState load_checkpoint_image(const std::string& name, const std::string& bytes,
@@ -527,6 +582,7 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
   for (const auto& t : c.model)
     if (!expected.count(t.name))
       r.fail("model/" + clip(t.name), std::string("is unexpected") + other);
+  check_slots(r, c);
 
   // The optimizer: the same groups, each parameter's state (if any) stored for that parameter.
   struct Slot {

@@ -70,11 +70,18 @@ struct AdamGroup {
 struct CheckpointContents {
   bool training = false;
   TrainingState state;
-  std::vector<CheckpointTensor> model;  // sorted by name
+  std::vector<CheckpointTensor> model;  // read: sorted by name
   std::vector<AdamGroup> groups;
   std::vector<AdamSlot> slots;  // by index
 };
 CheckpointContents read_checkpoint_contents(const std::string& name, const std::string& bytes);
+
+// What save_checkpoint_file writes (the tensors are shared, not copied), and the writer itself:
+// any contents, unchecked, so that tests and fuzzing can write damaged checkpoints.
+CheckpointContents checkpoint_contents(const torch::nn::Module& module,
+                                       const torch::optim::Adam* optimizer,
+                                       const TrainingState* state);
+void write_checkpoint_contents(const std::string& path, const CheckpointContents& contents);
 
 // "bsms-checkpoint": the root format attribute of these files.
 extern const char* const kCheckpointFormat;

@@ -159,13 +159,16 @@ std::vector<std::string> H5File::list(const std::string& group) const {
   Handle g(H5Gopen2(id_, group.c_str(), H5P_DEFAULT));
   if (!g.ok()) throw InputError(path_ + ": missing group " + group);
   H5G_info_t info{};
-  H5Gget_info(g.get(), &info);
+  if (H5Gget_info(g.get(), &info) < 0)
+    throw InputError(path_ + ": cannot read group " + group + " (damaged?)");
   for (hsize_t i = 0; i < info.nlinks; ++i) {
+    // A damaged link index fails here (-1): not a length to allocate.
     const ssize_t len =
         H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
-    std::string name(static_cast<size_t>(len), '\0');
-    H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), len + 1,
-                       H5P_DEFAULT);
+    std::string name(len > 0 ? static_cast<size_t>(len) : 0, '\0');
+    if (len < 0 || H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(),
+                                      static_cast<size_t>(len) + 1, H5P_DEFAULT) < 0)
+      throw InputError(path_ + ": cannot read the members of group " + group + " (damaged?)");
     names.push_back(name);
   }
   std::sort(names.begin(), names.end());
@@ -279,10 +282,10 @@ H5DatasetInfo H5File::dataset_info(const std::string& name) const {
   if (!exists(name)) throw InputError(path_ + ": missing dataset " + name);
   H5O_info_t object{};
   if (H5Oget_info_by_name(id_, name.c_str(), &object, H5P_DEFAULT) < 0)
-    throw InputError(path_ + ": cannot read object " + name);
+    throw InputError(path_ + ": cannot read object " + name + " (damaged?)");
   if (object.type != H5O_TYPE_DATASET) throw InputError(path_ + ": " + name + " is not a dataset");
   Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
-  if (!set.ok()) throw InputError(path_ + ": cannot open dataset " + name);
+  if (!set.ok()) throw InputError(path_ + ": cannot open dataset " + name + " (damaged?)");
   H5DatasetInfo info;
   Handle space(H5Dget_space(set.get()));
   const int rank = space.ok() ? H5Sget_simple_extent_ndims(space.get()) : -1;
@@ -490,7 +493,11 @@ std::string H5File::attr_string(const std::string& object, const std::string& na
     H5free_memory(buffer);
     return out;
   }
+  // A fixed-length string holds exactly its stored bytes: a damaged type size is not a length
+  // to allocate.
   const size_t size = H5Tget_size(type.get());
+  if (size == 0 || H5Aget_storage_size(attr.get()) < size)
+    throw InputError(path_ + ": attribute " + object + "@" + name + " is damaged");
   std::string out(size, '\0');
   if (H5Aread(attr.get(), type.get(), out.data()) < 0)
     throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
