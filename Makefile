@@ -84,6 +84,14 @@ FUZZ_MAX_LEN_fuzz_dataset := 4096
 FUZZ_MAX_LEN_fuzz_mesh := 2048
 FUZZ_MAX_LEN_fuzz_msh := 8192
 FUZZ_MAX_LEN_fuzz_tfrecord := 262144
+# --- checkpoints --- fuzz_checkpoint: the checkpoint loader on damaged file images of real
+# small checkpoints (~20 KB) and on structurally mutated contents (models/checkpoint.cpp).
+FUZZ_TARGETS += fuzz_checkpoint
+FUZZ_SEED_TARGETS += fuzz_checkpoint
+ifneq ($(origin FUZZ_SECONDS),command line)
+FUZZ_SECONDS_fuzz_checkpoint ?= 900
+endif
+FUZZ_MAX_LEN_fuzz_checkpoint := 16384
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev"
@@ -97,7 +105,7 @@ fuzz: deps
 	  > $(FUZZ_CORPUS)/fuzz_config/set_scene.json
 	{ cat configs/families/disks2d.json; printf '\0sample.count=[1,3]\0scene.background.min=[0]'; } \
 	  > $(FUZZ_CORPUS)/fuzz_config/set_family.json
-	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh; do \
+	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh $(FUZZ_SEED_TARGETS); do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
 	for d in tests/fixtures/meshgraphnets/*; do n=$$(basename $$d); \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_tfrecord/meta_$$n.json; \

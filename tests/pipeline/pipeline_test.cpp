@@ -667,8 +667,10 @@ TEST_F(PipelineTest, OlderTorchCheckpointIsRefusedThenConvertedOnce) {
     EXPECT_TRUE(torch::equal(a.slots[i].exp_avg, b.slots[i].exp_avg));
     EXPECT_TRUE(torch::equal(a.slots[i].exp_avg_sq, b.slots[i].exp_avg_sq));
   }
+  // (The learning rate is the schedule's, set before every step: LibTorch's archive loader never
+  // restored it, the conversion does not either.)
   ASSERT_EQ(a.groups.size(), 1u);
-  EXPECT_EQ(a.groups[0].lr, b.groups[0].lr);
+  EXPECT_EQ(a.groups[0].eps, b.groups[0].eps);
   EXPECT_EQ(a.state.step, 3);
   EXPECT_EQ(a.state.wall_s, b.state.wall_s);
   EXPECT_EQ(train(r).steps, 6);
