@@ -83,8 +83,8 @@ std::string shape_text(c10::IntArrayRef sizes, torch::ScalarType dtype) {
 }
 
 // Longer user strings are cut in messages.
-std::string clip(const std::string& s) {
-  std::string out = s.size() > 60 ? s.substr(0, 60) + "..." : s;
+std::string clip(const std::string& s, size_t most = 60) {
+  std::string out = s.size() > most ? s.substr(0, most) + "..." : s;
   for (char& c : out)
     if (static_cast<unsigned char>(c) < 32) c = '?';
   return out;
@@ -169,7 +169,7 @@ class Reader {
   const H5File& file() const { return *file_; }
 
   [[noreturn]] void fail(const std::string& entry, const std::string& what) const {
-    throw InputError(name_ + ": entry '" + entry + "' " + what);
+    throw InputError(name_ + ": entry '" + clip(entry, 120) + "' " + what);
   }
   [[noreturn]] void fail(const std::string& what) const { throw InputError(name_ + ": " + what); }
 
