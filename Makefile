@@ -90,6 +90,14 @@ FUZZ_MAX_LEN_fuzz_msh := 8192
 FUZZ_MAX_LEN_fuzz_tfrecord := 262144
 FUZZ_MAX_LEN_fuzz_json := 65536
 FUZZ_MAX_LEN_fuzz_geo := 4096
+# --- checkpoints --- fuzz_checkpoint: the checkpoint loader on damaged file images of real
+# small checkpoints (~20 KB) and on structurally mutated contents (models/checkpoint.cpp).
+FUZZ_TARGETS += fuzz_checkpoint
+FUZZ_SEED_TARGETS += fuzz_checkpoint
+ifneq ($(origin FUZZ_SECONDS),command line)
+FUZZ_SECONDS_fuzz_checkpoint ?= 900
+endif
+FUZZ_MAX_LEN_fuzz_checkpoint := 16384
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev"
@@ -106,7 +114,7 @@ fuzz: deps
 	cp configs/train/*.json configs/families/*.json $(FUZZ_CORPUS)/fuzz_json/
 	for d in tests/fixtures/meshgraphnets/*; do \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_json/meta_$$(basename $$d).json; done
-	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_json; do \
+	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_json $(FUZZ_SEED_TARGETS); do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
 	BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/fuzz_geo build-fuzz/fuzz/fuzz_geo && \
 	  cp configs/geometry/*.geo $(FUZZ_CORPUS)/fuzz_geo/

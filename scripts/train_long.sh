@@ -49,7 +49,8 @@ for model in bsms mgn; do
   budget=$train_seconds
   [[ $model == bsms ]] && budget=$bsms_seconds
   resume=()
-  [[ -f $run/checkpoints/latest.pt ]] && resume=(--resume)
+  # (An older run's latest.pt alone also resumes: train then says how to convert it.)
+  [[ -f $run/checkpoints/latest.h5 || -f $run/checkpoints/latest.pt ]] && resume=(--resume)
   "$bsms" train "$root/configs/train/disks2d-$model.json" --out "$run" --threads "$threads" \
     "${resume[@]}" --set "data=$data" --set "time_budget_s=$budget" --set steps=10000000 \
     --set "valid_every=$valid_every" "${extra[@]}"

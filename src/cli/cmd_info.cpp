@@ -1,7 +1,7 @@
 // bsms info FILE|RUN: summarises a dataset (bsms, public HDF5 layouts, a MeshGraphNets folder or
 // one of its .tfrecord splits), a multilevel graph file, simulation frames, a run or a training
-// checkpoint (.pt).
-#include <torch/serialize/input-archive.h>
+// checkpoint (RUN/checkpoints/latest.h5).
+#include <torch/torch.h>
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +18,9 @@
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/tfrecord.hpp"
+#include "models/checkpoint.hpp"
+#include "pipeline/simulator.hpp"
+#include "pipeline/trainer.hpp"
 
 namespace {
 
@@ -115,9 +118,10 @@ void info_frames(const bsms::H5File& f) {
             << " particles\n";
 }
 
-// Digest of the entries of a torch archive: names, types, shapes and bytes (FNV-1a, 64 bits), so
-// that two checkpoints can be compared bit for bit (e.g. a resumed run with an uninterrupted one).
-struct ArchiveDigest {
+// Digest of a checkpoint's tensors and settings: names, types, shapes and bytes (FNV-1a, 64
+// bits), so that two checkpoints can be compared bit for bit (e.g. a resumed run with an
+// uninterrupted one).
+struct Digest {
   int64_t tensors = 0;
   int64_t values = 0;  // tensor elements
   uint64_t hash = 0xcbf29ce484222325ull;
@@ -126,68 +130,20 @@ struct ArchiveDigest {
     for (size_t i = 0; i < n; ++i) hash = (hash ^ p[i]) * 0x100000001b3ull;
   }
   void add(const std::string& text) { add(text.data(), text.size() + 1); }
+  template <class T>
+  void add_value(T x) {
+    add(&x, sizeof x);
+  }
+  void add(const std::string& name, const torch::Tensor& t) {
+    if (!t.defined()) return;
+    add(name);
+    add(std::string(c10::toString(t.scalar_type())));
+    for (int64_t size : t.sizes()) add_value(size);
+    add(t.data_ptr(), t.nbytes());
+    ++tensors;
+    values += t.numel();
+  }
 };
-
-// `names` renames keys and string values: the optimizer's archive names parameters by their
-// address in memory, which differs from process to process, the digest by their position.
-using Names = std::map<std::string, std::string>;
-void digest_archive(torch::serialize::InputArchive& archive, const std::string& prefix,
-                    const std::vector<std::string>& skip, const Names& names, ArchiveDigest& d) {
-  auto named = [&](const std::string& s) {
-    const auto it = names.find(s);
-    return it == names.end() ? s : it->second;
-  };
-  std::vector<std::pair<std::string, std::string>> keys;  // (digested name, key)
-  for (const auto& key : archive.keys())
-    if (std::find(skip.begin(), skip.end(), key) == skip.end()) keys.emplace_back(named(key), key);
-  std::sort(keys.begin(), keys.end());
-  for (const auto& [name, key] : keys) {
-    c10::IValue value;
-    archive.read(key, value);
-    d.add(prefix + name);
-    if (value.isObject()) {
-      torch::serialize::InputArchive sub;
-      archive.read(key, sub);
-      digest_archive(sub, prefix + name + ".", {}, names, d);
-    } else if (value.isString()) {
-      d.add(named(value.toStringRef()));
-    } else if (value.isTensor()) {
-      const at::Tensor t = value.toTensor().contiguous().cpu();
-      d.add(std::string(c10::toString(t.scalar_type())));
-      for (int64_t size : t.sizes()) d.add(&size, sizeof size);
-      d.add(t.data_ptr(), t.nbytes());
-      ++d.tensors;
-      d.values += t.numel();
-    } else if (value.isDouble()) {
-      const double x = value.toDouble();
-      d.add(&x, sizeof x);
-    } else if (value.isInt()) {
-      const int64_t x = value.toInt();
-      d.add(&x, sizeof x);
-    } else {
-      std::ostringstream text;
-      text << value;
-      d.add(text.str());
-    }
-  }
-}
-
-// torch::optim's layout: param_groups/G holds entries params/I, the address naming parameter I
-// of group G (the key of its state): names each address by that path.
-void parameter_names(torch::serialize::InputArchive& archive, const std::string& prefix,
-                     Names& names) {
-  for (const auto& key : archive.keys()) {
-    c10::IValue value;
-    archive.read(key, value);
-    if (value.isObject()) {
-      torch::serialize::InputArchive sub;
-      archive.read(key, sub);
-      parameter_names(sub, prefix + key + ".", names);
-    } else if (value.isString() && key.rfind("params/", 0) == 0) {
-      names[value.toStringRef()] = prefix + key;
-    }
-  }
-}
 
 std::string hex(uint64_t h) {
   char text[17];
@@ -195,53 +151,56 @@ std::string hex(uint64_t h) {
   return text;
 }
 
-// A training checkpoint (or a module archive): step, losses, and digests of the model's and the
-// optimizer's state.
-void info_checkpoint(const std::string& path, const std::string& indent = "") {
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const c10::Error&) {
-    throw bsms::InputError(path + ": not a readable checkpoint (truncated or corrupt)");
+// A checkpoint (training or module): step, losses, and digests of the model's and the
+// optimizer's state, after the same checks as every load (bsms::read_checkpoint_contents).
+std::string describe_checkpoint(const std::string& path, const std::string& indent = "") {
+  const bsms::CheckpointContents c =
+      bsms::read_checkpoint_contents(path, bsms::read_checkpoint_bytes(path));
+  Digest model, optimizer;
+  for (const auto& t : c.model) model.add(t.name, t.value);
+  for (const auto& g : c.groups) {
+    for (double x : {g.lr, g.beta1, g.beta2, g.eps, g.weight_decay}) optimizer.add_value(x);
+    optimizer.add_value(static_cast<int64_t>(g.amsgrad));
+    optimizer.add_value(g.size);
   }
-  auto scalar = [&](const char* key, int64_t i) {
-    torch::Tensor t;
-    return archive.try_read(key, t) && t.numel() > i ? t.reshape({-1})[i].item<double>()
-                                                     : std::nan("");
-  };
-  const std::vector<std::string> state = {"optimizer", "step", "wall_s", "losses"};
-  ArchiveDigest model, optimizer;
-  try {
-    digest_archive(archive, "", state, {}, model);
-    torch::serialize::InputArchive sub;
-    if (archive.try_read("optimizer", sub)) {
-      Names names;
-      parameter_names(sub, "", names);
-      digest_archive(sub, "", {}, names, optimizer);
-    }
-  } catch (const c10::Error& e) {
-    const std::string what = e.what_without_backtrace();
-    throw bsms::InputError(path + ": unreadable entry (" + what.substr(0, what.find('\n')) + ")");
+  for (const auto& a : c.slots) {
+    const std::string at = "state/" + std::to_string(a.index) + "/";
+    optimizer.add(at + a.parameter);
+    optimizer.add_value(a.step);
+    optimizer.add(at + "exp_avg", a.exp_avg);
+    optimizer.add(at + "exp_avg_sq", a.exp_avg_sq);
+    optimizer.add(at + "max_exp_avg_sq", a.max_exp_avg_sq);
   }
-  const double step = scalar("step", 0);
-  std::cout << indent << path << ": bsms " << (std::isnan(step) ? "module" : "training")
-            << " checkpoint\n";
-  if (!std::isnan(step)) {
-    std::cout << indent << "  step " << static_cast<int64_t>(step) << ", wall time "
-              << scalar("wall_s", 0) << " s";
-    if (!std::isnan(scalar("losses", 0)))
-      std::cout << ", loss " << scalar("losses", 0) << ", valid loss " << scalar("losses", 1)
-                << " (zero prediction " << scalar("losses", 2) << ")";
-    std::cout << '\n';
+  std::ostringstream out;
+  out << indent << path << ": bsms " << (c.training ? "training" : "module")
+      << " checkpoint (format version " << bsms::kCheckpointVersion << ")\n";
+  if (c.training) {
+    const bsms::TrainingState& s = c.state;
+    out << indent << "  step " << s.step << ", wall time " << s.wall_s << " s";
+    if (!std::isnan(s.loss))
+      out << ", loss " << s.loss << ", valid loss " << s.valid_loss << " (zero prediction "
+          << s.valid_baseline << ")";
+    out << '\n';
   }
-  std::cout << indent << "  model: " << model.tensors << " tensors, " << model.values
-            << " values, digest " << hex(model.hash) << '\n';
-  if (optimizer.tensors > 0 || !std::isnan(step))
-    std::cout << indent << "  optimizer: " << optimizer.tensors << " tensors, " << optimizer.values
-              << " values, digest " << hex(optimizer.hash) << '\n';
+  out << indent << "  model: " << model.tensors << " tensors, " << model.values
+      << " values, digest " << hex(model.hash) << '\n';
+  if (c.training)
+    out << indent << "  optimizer: " << c.groups.size() << " group(s), " << optimizer.tensors
+        << " tensors, " << optimizer.values << " values, digest " << hex(optimizer.hash) << '\n';
+  return out.str();
 }
 
 void info_run(const std::string& run) {
+  // The checkpoint is read (and checked) before anything is printed: a damaged one is an error,
+  // not half a summary.
+  const std::string checkpoint = bsms::run_checkpoint_path(run);
+  std::string described;
+  if (fs::exists(checkpoint)) {
+    described = describe_checkpoint(checkpoint, "  ");
+  } else {
+    const std::string legacy = bsms::legacy_checkpoint_path(checkpoint);
+    if (fs::exists(legacy)) throw bsms::InputError(bsms::legacy_checkpoint_message(legacy));
+  }
   std::cout << run << ": bsms run\n";
   for (const char* name : {"config.json", "train_stats.json", "rollout/metrics.json"}) {
     const fs::path p = fs::path(run) / name;
@@ -250,14 +209,13 @@ void info_run(const std::string& run) {
     if (j.contains("rmse_per_step")) j.erase("rmse_per_step");
     std::cout << "  " << name << ":\n" << j.dump(2) << '\n';
   }
-  const fs::path checkpoint = fs::path(run) / "checkpoints" / "latest.pt";
-  if (fs::exists(checkpoint)) {
-    try {
-      info_checkpoint(checkpoint.string(), "  ");
-    } catch (const bsms::InputError& e) {
-      std::cout << "  " << e.what() << '\n';
-    }
-  }
+  std::cout << described;
+}
+
+// A checkpoint file by its name (RUN/checkpoints/*.h5) or its format attribute.
+bool is_checkpoint_path(const std::string& path) {
+  const fs::path p(path);
+  return p.extension() == ".h5" && p.parent_path().filename() == "checkpoints";
 }
 
 void info(const std::string& path) {
@@ -277,7 +235,11 @@ void info(const std::string& path) {
   }
   if (fs::path(path).extension() == ".pt") {
     if (!fs::is_regular_file(path)) throw bsms::InputError(path + ": no such checkpoint");
-    return info_checkpoint(path);
+    throw bsms::InputError(bsms::legacy_checkpoint_message(path));
+  }
+  if (is_checkpoint_path(path)) {
+    std::cout << describe_checkpoint(path);
+    return;
   }
   if (fs::path(path).extension() == ".tfrecord") {
     const fs::path parent = fs::path(path).parent_path();
@@ -287,21 +249,26 @@ void info(const std::string& path) {
   const bsms::H5File f(path, bsms::H5File::Mode::kRead);
   const std::string format = f.has_attr("/", "format") ? f.attr_string("/", "format") : "";
   if (format == "bsms-dataset") return info_dataset(path);
+  if (format == bsms::kCheckpointFormat) {
+    std::cout << describe_checkpoint(path);
+    return;
+  }
   if (format == "bsms-multilevel") return info_multilevel(f);
   if (format == "bsms-frames") return info_frames(f);
   if (f.exists("/mesh_pos")) return info_dataset(fs::path(path).parent_path().string());
   if (format.empty())
     for (const auto& name : f.list("/"))
       if (f.exists("/" + name + "/mesh_pos")) return info_dataset(path);  // single-file public
-  throw bsms::InputError(path + ": unknown file (format attribute '" + format +
-                         "'; expected bsms-dataset, bsms-multilevel or bsms-frames)");
+  throw bsms::InputError(
+      path + ": unknown file (format attribute '" + format +
+      "'; expected bsms-dataset, bsms-multilevel, bsms-frames or bsms-checkpoint)");
 }
 
 BSMS_COMMAND(
     "info", "summarise a dataset, multilevel graph file, frames file, run folder or checkpoint",
     [](CLI::App& sub) {
       auto path = std::make_shared<std::string>();
-      sub.add_option("file", *path, "HDF5 file, run folder or checkpoint (.pt)")->required();
+      sub.add_option("file", *path, "HDF5 file, run folder or checkpoint (.h5)")->required();
       sub.callback([path] { info(*path); });
     });
 

@@ -44,8 +44,8 @@ BSMS_COMMAND(
           ->check(CLI::Range(1.0, 86400.0))
           ->default_val(300.0);
       sub.footer(
-          "Writes RUN/config.json (resolved), RUN/checkpoints/latest.pt (model, normalizers,\n"
-          "optimizer, step; atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss,\n"
+          "Writes RUN/config.json (resolved), RUN/checkpoints/latest.h5 (model, normalizers,\n"
+          "optimizer, step; HDF5, atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss,\n"
           "valid_baseline = the loss of predicting zero, lr) and RUN/train_stats.json.\n"
           "Multilevel graphs are built on first use and cached in DATA/multilevel/ (or\n"
           "RUN/multilevel/ when the data folder is read-only).\n"
@@ -61,10 +61,12 @@ BSMS_COMMAND(
                 : r.out;
         // A run folder this command created goes when it fails before its first checkpoint
         // (e.g. --resume of a folder that holds none); one with a checkpoint stays resumable.
+        // (An older run's LibTorch checkpoint, latest.pt, counts: it is never removed.)
         auto keep = [run] {
           std::error_code ec;
-          return std::filesystem::exists(std::filesystem::path(run) / "checkpoints" / "latest.pt",
-                                         ec);
+          const auto dir = std::filesystem::path(run) / "checkpoints";
+          return std::filesystem::exists(dir / "latest.h5", ec) ||
+                 std::filesystem::exists(dir / "latest.pt", ec);
         };
         const bool launched = std::getenv("BSMS_LAUNCHED") != nullptr;
         if (args->nproc > 1 && !launched) {

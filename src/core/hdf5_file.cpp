@@ -76,6 +76,32 @@ H5File::H5File(const std::string& path, Mode mode) : path_(path) {
   }
 }
 
+H5File H5File::create_checksummed(const std::string& path) {
+  silence_hdf5();
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
+  if (!fapl.ok() || H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0)
+    throw IoError(path + ": cannot set up the HDF5 file format");
+  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  if (id < 0) throw IoError(path + ": cannot create HDF5 file");
+  return H5File(path, id, true);
+}
+
+H5File H5File::open_image(const std::string& name, const void* data, size_t size) {
+  silence_hdf5();
+  // libhdf5 takes two open files of the core driver with one name for the same file: each image
+  // gets a name of its own (the user's name stays in path() for messages).
+  static std::atomic<uint64_t> images{0};
+  const std::string internal = name + "#image" + std::to_string(images++);
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
+  if (!fapl.ok() || H5Pset_fapl_core(fapl.get(), 1 << 16, /*backing_store=*/0) < 0 ||
+      H5Pset_file_image(fapl.get(), const_cast<void*>(data), size) < 0)
+    throw InputError(name + ": cannot hold the file in memory (" + std::to_string(size) +
+                     " bytes)");
+  const hid_t id = H5Fopen(internal.c_str(), H5F_ACC_RDONLY, fapl.get());
+  if (id < 0) throw InputError(name + ": not a readable HDF5 file (truncated or corrupt)");
+  return H5File(name, id, false);
+}
+
 H5File::~H5File() {
   if (id_ >= 0) H5Fclose(id_);
 }
@@ -128,20 +154,28 @@ void H5File::create_group(const std::string& group) {
   }
 }
 
+namespace {
+herr_t collect_link_name(hid_t, const char* name, const H5L_info_t*, void* names) noexcept {
+  try {
+    static_cast<std::vector<std::string>*>(names)->emplace_back(name);
+    return 0;
+  } catch (...) {
+    return -1;
+  }
+}
+}  // namespace
+
 std::vector<std::string> H5File::list(const std::string& group) const {
   std::vector<std::string> names;
   Handle g(H5Gopen2(id_, group.c_str(), H5P_DEFAULT));
   if (!g.ok()) throw InputError(path_ + ": missing group " + group);
-  H5G_info_t info{};
-  H5Gget_info(g.get(), &info);
-  for (hsize_t i = 0; i < info.nlinks; ++i) {
-    const ssize_t len =
-        H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
-    std::string name(static_cast<size_t>(len), '\0');
-    H5Lget_name_by_idx(g.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(), len + 1,
-                       H5P_DEFAULT);
-    names.push_back(name);
-  }
+  // Iterating in native order walks a large group's name index directly; looking names up by
+  // position (or iterating in a set order) builds a table of its links first, and libhdf5 1.10
+  // frees pointers it never set when a damaged link fails half-way through that table (a crash,
+  // found by fuzzing checkpoints). The names are sorted here.
+  hsize_t at = 0;
+  if (H5Literate(g.get(), H5_INDEX_NAME, H5_ITER_NATIVE, &at, collect_link_name, &names) < 0)
+    throw InputError(path_ + ": cannot read the members of group " + group + " (damaged?)");
   std::sort(names.begin(), names.end());
   return names;
 }
@@ -229,6 +263,98 @@ Shape H5File::shape(const std::string& name) const {
   Shape dims(static_cast<size_t>(rank));
   H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
   return dims;
+}
+
+const char* h5_dtype_name(H5Dtype dtype) {
+  switch (dtype) {
+    case H5Dtype::kFloat32:
+      return "float32";
+    case H5Dtype::kFloat64:
+      return "float64";
+    case H5Dtype::kInt64:
+      return "int64";
+    case H5Dtype::kInt32:
+      return "int32";
+    case H5Dtype::kUInt8:
+      return "uint8";
+    case H5Dtype::kOther:
+      break;
+  }
+  return "other";
+}
+
+H5DatasetInfo H5File::dataset_info(const std::string& name) const {
+  if (!exists(name)) throw InputError(path_ + ": missing dataset " + name);
+  H5O_info_t object{};
+  if (H5Oget_info_by_name(id_, name.c_str(), &object, H5P_DEFAULT) < 0)
+    throw InputError(path_ + ": cannot read object " + name + " (damaged?)");
+  if (object.type != H5O_TYPE_DATASET) throw InputError(path_ + ": " + name + " is not a dataset");
+  Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
+  if (!set.ok()) throw InputError(path_ + ": cannot open dataset " + name + " (damaged?)");
+  H5DatasetInfo info;
+  Handle space(H5Dget_space(set.get()));
+  const int rank = space.ok() ? H5Sget_simple_extent_ndims(space.get()) : -1;
+  if (rank < 0) throw InputError(path_ + ": cannot read the shape of " + name);
+  info.shape.resize(static_cast<size_t>(rank));
+  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), info.shape.data(), nullptr) < 0)
+    throw InputError(path_ + ": cannot read the shape of " + name);
+  Handle type(H5Dget_type(set.get()));
+  if (!type.ok()) throw InputError(path_ + ": cannot read the type of " + name);
+  info.element_size = H5Tget_size(type.get());
+  const std::pair<hid_t, H5Dtype> known[] = {
+      {H5T_IEEE_F32LE, H5Dtype::kFloat32}, {H5T_IEEE_F32BE, H5Dtype::kFloat32},
+      {H5T_IEEE_F64LE, H5Dtype::kFloat64}, {H5T_IEEE_F64BE, H5Dtype::kFloat64},
+      {H5T_STD_I64LE, H5Dtype::kInt64},    {H5T_STD_I64BE, H5Dtype::kInt64},
+      {H5T_STD_I32LE, H5Dtype::kInt32},    {H5T_STD_I32BE, H5Dtype::kInt32},
+      {H5T_STD_U8LE, H5Dtype::kUInt8},     {H5T_STD_U8BE, H5Dtype::kUInt8}};
+  for (const auto& [h5, dtype] : known)
+    if (H5Tequal(type.get(), h5) > 0) {
+      info.dtype = dtype;
+      break;
+    }
+  Handle plist(H5Dget_create_plist(set.get()));
+  info.contiguous = plist.ok() && H5Pget_layout(plist.get()) == H5D_CONTIGUOUS;
+  info.storage_bytes = H5Dget_storage_size(set.get());
+  if (info.contiguous) info.address = H5Dget_offset(set.get());
+  return info;
+}
+
+bool H5File::is_hard_link(const std::string& object) const {
+  std::string walked;
+  for (const auto& part : split_path(object)) {
+    walked += "/" + part;
+    H5L_info_t info{};
+    if (H5Lexists(id_, walked.c_str(), H5P_DEFAULT) <= 0 ||
+        H5Lget_info(id_, walked.c_str(), &info, H5P_DEFAULT) < 0 || info.type != H5L_TYPE_HARD)
+      return false;
+  }
+  return true;
+}
+
+bool H5File::is_group(const std::string& object) const {
+  if (!exists(object)) return false;
+  H5O_info_t info{};
+  return H5Oget_info_by_name(id_, object.c_str(), &info, H5P_DEFAULT) >= 0 &&
+         info.type == H5O_TYPE_GROUP;
+}
+
+std::vector<std::string> H5File::attr_names(const std::string& object) const {
+  Handle obj(H5Oopen(id_, object.c_str(), H5P_DEFAULT));
+  if (!obj.ok()) throw InputError(path_ + ": missing object " + object);
+  H5O_info_t info{};
+  if (H5Oget_info(obj.get(), &info) < 0) throw InputError(path_ + ": cannot read object " + object);
+  std::vector<std::string> names;
+  for (hsize_t i = 0; i < info.num_attrs; ++i) {
+    const ssize_t len =
+        H5Aget_name_by_idx(obj.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, nullptr, 0, H5P_DEFAULT);
+    if (len < 0) throw InputError(path_ + ": cannot read the attributes of " + object);
+    std::string name(static_cast<size_t>(len), '\0');
+    H5Aget_name_by_idx(obj.get(), ".", H5_INDEX_NAME, H5_ITER_INC, i, name.data(),
+                       static_cast<size_t>(len) + 1, H5P_DEFAULT);
+    names.push_back(name);
+  }
+  std::sort(names.begin(), names.end());
+  return names;
 }
 
 namespace {
@@ -372,7 +498,11 @@ std::string H5File::attr_string(const std::string& object, const std::string& na
     H5free_memory(buffer);
     return out;
   }
+  // A fixed-length string holds exactly its stored bytes: a damaged type size is not a length
+  // to allocate.
   const size_t size = H5Tget_size(type.get());
+  if (size == 0 || H5Aget_storage_size(attr.get()) < size)
+    throw InputError(path_ + ": attribute " + object + "@" + name + " is damaged");
   std::string out(size, '\0');
   if (H5Aread(attr.get(), type.get(), out.data()) < 0)
     throw InputError(path_ + ": cannot read attribute " + object + "@" + name);

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace bsms {
@@ -35,10 +36,35 @@ inline hid_t h5_native_type<uint8_t>() {
   return H5T_NATIVE_UINT8;
 }
 
+// The element type of a stored dataset, for readers that take one type and no conversion.
+enum class H5Dtype { kFloat32, kFloat64, kInt64, kInt32, kUInt8, kOther };
+const char* h5_dtype_name(H5Dtype dtype);  // "float32", ..., "other"
+
+// What a strict reader checks before reading a dataset (H5File::dataset_info).
+struct H5DatasetInfo {
+  Shape shape;
+  H5Dtype dtype = H5Dtype::kOther;
+  size_t element_size = 0;        // bytes per element as stored
+  bool contiguous = false;        // contiguous layout (not chunked, compact or virtual)
+  hsize_t storage_bytes = 0;      // bytes allocated in the file (H5Dget_storage_size)
+  haddr_t address = HADDR_UNDEF;  // file offset of contiguous data (HADDR_UNDEF if unallocated)
+  hsize_t elements() const {
+    hsize_t n = 1;
+    for (hsize_t d : shape) n *= d;
+    return n;
+  }
+};
+
 class H5File {
  public:
   enum class Mode { kRead, kReadWrite, kTruncate };
   H5File(const std::string& path, Mode mode);
+  // Creates (truncates) `path` in the HDF5 1.8+ file format, whose superblock, object headers
+  // and group indexes carry checksums that libhdf5 verifies when the file is read.
+  static H5File create_checksummed(const std::string& path);
+  // Opens an HDF5 file image held in memory (read only; the bytes are copied); `name` names the
+  // file in errors. InputError when the bytes are not a readable HDF5 file.
+  static H5File open_image(const std::string& name, const void* data, size_t size);
   ~H5File();
   H5File(const H5File&) = delete;
   H5File& operator=(const H5File&) = delete;
@@ -76,6 +102,16 @@ class H5File {
                      hsize_t width);
 
   Shape shape(const std::string& name) const;
+  // Shape, stored type, layout and storage of a dataset; InputError naming it when it is missing
+  // or not a dataset.
+  H5DatasetInfo dataset_info(const std::string& name) const;
+  // True when `object` is reached through hard links only (no soft or external link, which a
+  // strict reader must not follow: an external link opens another file).
+  bool is_hard_link(const std::string& object) const;
+  // True when `object` exists and is a group.
+  bool is_group(const std::string& object) const;
+  // Attribute names of an object, sorted.
+  std::vector<std::string> attr_names(const std::string& object) const;
   // Reads a whole dataset, converting to T; checks rank/extent against `expect` where given
   // (0 in `expect` matches any extent).
   template <class T>
@@ -95,6 +131,8 @@ class H5File {
   double attr_double(const std::string& object, const std::string& name) const;
 
  private:
+  H5File(std::string path, hid_t id, bool writable)
+      : path_(std::move(path)), id_(id), writable_(writable) {}
   std::string path_;
   hid_t id_ = -1;
   bool writable_ = false;

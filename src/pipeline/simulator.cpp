@@ -3,11 +3,8 @@
 #include <torch/torch.h>
 
 #include <filesystem>
-#include <sstream>
 
 #include "core/error.hpp"
-#include "core/hdf5_file.hpp"
-#include "models/checkpoint.hpp"
 
 namespace bsms {
 
@@ -113,82 +110,38 @@ torch::Tensor LearnedSimulator::predict(const Batch& batch) {
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Optimizer& optimizer, const CheckpointInfo& info) {
-  AtomicOutput out(path);
-  try {
-    torch::serialize::OutputArchive archive;
-    simulator.save(archive);
-    torch::serialize::OutputArchive optimizer_archive;
-    optimizer.save(optimizer_archive);
-    archive.write("optimizer", optimizer_archive);
-    archive.write("step", torch::tensor({info.step}, torch::kInt64));
-    archive.write("wall_s", torch::tensor({info.wall_s}, torch::kFloat64));
-    archive.write("losses", torch::tensor({info.loss, info.valid_loss, info.valid_baseline},
-                                          torch::kFloat64));
-    archive.save_to(out.temp_path());
-  } catch (const c10::Error& e) {
-    throw IoError(path + ": cannot write checkpoint (" + std::string(e.what_without_backtrace()) +
-                  ")");
-  }
-  out.commit();
+                     torch::optim::Adam& optimizer, const CheckpointInfo& info) {
+  save_checkpoint_file(path, simulator, &optimizer, &info);
 }
-
-namespace {
-
-CheckpointInfo read_checkpoint(torch::serialize::InputArchive& archive, const std::string& path,
-                               LearnedSimulator& simulator, torch::optim::Optimizer* optimizer) {
-  CheckpointInfo info;
-  read_module(simulator, archive, path);  // checks every entry's shape before copying
-  try {
-    if (optimizer) {
-      torch::serialize::InputArchive optimizer_archive;
-      archive.read("optimizer", optimizer_archive);
-      optimizer->load(optimizer_archive);
-    }
-    torch::Tensor step, wall;
-    archive.read("step", step);
-    archive.read("wall_s", wall);
-    info.step = step.item<int64_t>();
-    info.wall_s = wall.item<double>();
-    torch::Tensor losses;
-    if (archive.try_read("losses", losses) && losses.numel() == 3) {
-      info.loss = losses[0].item<double>();
-      info.valid_loss = losses[1].item<double>();
-      info.valid_baseline = losses[2].item<double>();
-    }
-  } catch (const c10::Error& e) {
-    std::string what = e.what_without_backtrace();
-    throw InputError(path + ": checkpoint lacks training state (" +
-                     what.substr(0, what.find('\n')) + ")");
-  }
-  return info;
-}
-
-}  // namespace
 
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                               torch::optim::Optimizer* optimizer) {
-  if (!std::filesystem::exists(path)) throw InputError(path + ": checkpoint not found");
-  torch::serialize::InputArchive archive;
-  try {
-    archive.load_from(path);
-  } catch (const c10::Error&) {
-    throw InputError(path + ": not a readable checkpoint (truncated or corrupt)");
+                               torch::optim::Adam* optimizer) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    const std::string legacy = legacy_checkpoint_path(path);
+    if (!legacy.empty() && std::filesystem::exists(legacy, ec))
+      throw InputError(legacy_checkpoint_message(legacy));
   }
-  return read_checkpoint(archive, path, simulator, optimizer);
+  return load_checkpoint_bytes(read_checkpoint_bytes(path), path, simulator, optimizer);
 }
 
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
-                                     LearnedSimulator& simulator,
-                                     torch::optim::Optimizer* optimizer) {
-  torch::serialize::InputArchive archive;
-  try {
-    std::istringstream in(bytes);
-    archive.load_from(in);
-  } catch (const c10::Error&) {
-    throw InputError(name + ": not a readable checkpoint (truncated or corrupt)");
-  }
-  return read_checkpoint(archive, name, simulator, optimizer);
+                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer) {
+  return load_checkpoint_image(name, bytes, simulator, optimizer, /*require_training=*/true);
+}
+
+std::string legacy_checkpoint_path(const std::string& path) {
+  const std::filesystem::path p(path);
+  if (p.filename() != "latest.h5") return "";
+  return (p.parent_path() / "latest.pt").string();
+}
+
+std::string legacy_checkpoint_message(const std::string& legacy) {
+  const std::filesystem::path run = std::filesystem::path(legacy).parent_path().parent_path();
+  return legacy +
+         ": a LibTorch archive (older bsms), which bsms no longer loads because loading one runs "
+         "code from the file; if you trust it, convert it once: bsms convert-checkpoint " +
+         (run.empty() ? std::string(".") : run.string()) + " --trust-torch-archive";
 }
 
 }  // namespace bsms

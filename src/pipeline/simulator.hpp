@@ -2,12 +2,13 @@
 #pragma once
 
 #include <torch/nn/module.h>
-#include <torch/optim/optimizer.h>
+#include <torch/optim/adam.h>
 
 #include <cmath>
 #include <memory>
 #include <string>
 
+#include "models/checkpoint.hpp"
 #include "models/layers.hpp"
 #include "models/networks.hpp"
 #include "pipeline/eulerian.hpp"
@@ -64,24 +65,22 @@ class LearnedSimulator : public torch::nn::Module {
   std::shared_ptr<Normalizer> input_norm_, output_norm_;
 };
 
-// Checkpoint: simulator parameters and buffers, optimizer state and the training step, written
-// atomically. Errors (missing, corrupt, mismatched shapes) are InputErrors naming the file.
-struct CheckpointInfo {
-  int64_t step = 0;
-  double wall_s = 0.0;
-  // The losses of the step and its validation (NaN when not measured, or in checkpoints written
-  // before they were saved): what a resumed run that trains no further step reports.
-  double loss = std::nan("");
-  double valid_loss = std::nan("");
-  double valid_baseline = std::nan("");
-};
+// Checkpoint (models/checkpoint.hpp, HDF5): simulator parameters and buffers, optimizer state
+// and the training step, written atomically. Loading validates the whole file before anything is
+// copied; errors (missing, damaged, mismatched, non-finite) are InputErrors naming the file and
+// the entry. A run that has only a LibTorch checkpoint (latest.pt, older bsms) is refused with a
+// line saying how to convert it (`bsms convert-checkpoint`).
+using CheckpointInfo = TrainingState;
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Optimizer& optimizer, const CheckpointInfo& info);
+                     torch::optim::Adam& optimizer, const CheckpointInfo& info);
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                               torch::optim::Optimizer* optimizer);
+                               torch::optim::Adam* optimizer);
 // The same from a checkpoint file's bytes (data-parallel ranks get rank 0's); `name` for errors.
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
-                                     LearnedSimulator& simulator,
-                                     torch::optim::Optimizer* optimizer);
+                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer);
+// The LibTorch checkpoint older bsms wrote beside `path` (RUN/checkpoints/latest.pt for
+// RUN/checkpoints/latest.h5; empty for other names), and the one line that refuses it.
+std::string legacy_checkpoint_path(const std::string& path);
+std::string legacy_checkpoint_message(const std::string& legacy_path);
 
 }  // namespace bsms

@@ -40,7 +40,7 @@ std::string run_config_path(const std::string& run) {
   return (fs::path(run) / "config.json").string();
 }
 std::string run_checkpoint_path(const std::string& run) {
-  return (fs::path(run) / "checkpoints" / "latest.pt").string();
+  return (fs::path(run) / "checkpoints" / "latest.h5").string();
 }
 std::string run_log_path(const std::string& run) {
   return (fs::path(run) / "train_log.csv").string();
@@ -182,10 +182,13 @@ TrainResult train(const TrainRequest& request) {
       std::error_code ec;
       fs::create_directories(fs::path(run) / "checkpoints", ec);
       if (ec) throw InputError(run + ": cannot create the run folder (" + ec.message() + ")");
-      if (!request.resume && fs::exists(checkpoint))
+      const std::string legacy = legacy_checkpoint_path(checkpoint);
+      if (!request.resume && (fs::exists(checkpoint) || fs::exists(legacy)))
         throw InputError(run +
                          ": run folder already holds a checkpoint; pass --resume to continue it "
                          "or --out for a new run");
+      if (request.resume && !fs::exists(checkpoint) && fs::exists(legacy))
+        throw InputError(legacy_checkpoint_message(legacy));
       if (request.resume && !fs::exists(checkpoint))
         throw InputError(checkpoint +
                          ": nothing to resume (no checkpoint in this run folder; a session "
@@ -215,11 +218,8 @@ TrainResult train(const TrainRequest& request) {
                     << ": the sample sequence changed (training goes on correctly, with "
                     << world * config.optimizer.batch_size << " samples per step instead of "
                     << before * config.optimizer.batch_size << ")\n";
-        if (comm) {
-          std::ifstream in(checkpoint, std::ios::binary);
-          checkpoint_bytes.assign(std::istreambuf_iterator<char>(in), {});
-          if (!in.good() && !in.eof()) throw InputError(checkpoint + ": cannot read");
-        }
+        // Read once here: every rank (this one too) loads these bytes as an HDF5 file image.
+        if (comm) checkpoint_bytes = read_checkpoint_bytes(checkpoint);
       }
       write_json_atomic(run_config_path(run), run_json);
     } catch (const InputError& e) {

@@ -101,14 +101,14 @@ setup() {
            run_resume_lr run_data_gone; do
     cp -r run "$r"
   done
-  truncate_half run_ckpt_trunc/checkpoints/latest.pt
-  truncate_half run_ckpt_trunc2/checkpoints/latest.pt
-  truncate_half run_resume_trunc/checkpoints/latest.pt
-  printf 'this is not a checkpoint\n' >run_ckpt_garbage/checkpoints/latest.pt
-  printf 'this is not a checkpoint\n' >run_ckpt_garbage2/checkpoints/latest.pt
-  # A byte deep inside the archive (a tensor's data or the zip's directory).
-  flip run_ckpt_flip/checkpoints/latest.pt $(($(stat -c %s run_ckpt_flip/checkpoints/latest.pt) - 30))
-  rm run_no_ckpt/checkpoints/latest.pt
+  truncate_half run_ckpt_trunc/checkpoints/latest.h5
+  truncate_half run_ckpt_trunc2/checkpoints/latest.h5
+  truncate_half run_resume_trunc/checkpoints/latest.h5
+  printf 'this is not a checkpoint\n' >run_ckpt_garbage/checkpoints/latest.h5
+  printf 'this is not a checkpoint\n' >run_ckpt_garbage2/checkpoints/latest.h5
+  # A byte near the end of the file (HDF5 metadata written last, or a tensor's values).
+  flip run_ckpt_flip/checkpoints/latest.h5 $(($(stat -c %s run_ckpt_flip/checkpoints/latest.h5) - 30))
+  rm run_no_ckpt/checkpoints/latest.h5
   printf '{"data": ' >run_bad_config/config.json
   sed -i 's#"data": *"[^"]*"#"data": "'"$in"'/no_such_data"#' run_no_config_data/config.json
   sed -i 's#"data": *"[^"]*"#"data": "'"$in"'/data_gone"#' run_data_gone/config.json
@@ -170,6 +170,7 @@ EOF
   sed 's/"family": "disks"/"family": "teapots"/' "$src/configs/families/disks2d.json" >family_unknown.json
 
   setup_json
+  setup_checkpoints
 
   chmod -R a-w "$tmp"/run "$tmp"/data 2>/dev/null || true  # (root ignores it; documents intent)
   cd "$work"
@@ -216,6 +217,35 @@ setup_json() {
   truncate_half json_run_resume_stats/train_stats.json
   cp -r run json_run_resume_log
   sed -i '2i 1,not-a-time,0.5,,,0.001' json_run_resume_log/train_log.csv
+}
+
+# --- checkpoints ---
+# Damaged checkpoints (RUN/checkpoints/latest.h5) for rollout, info and train --resume: each
+# defect D in ckpt_D (read by rollout and info) and ckpt_D_r (train --resume). The defects the
+# file's checksums and digests do not reveal are written by checkpoint_edit (its path in
+# $BSMS_CHECKPOINT_EDIT, set by ctest). A run of another model configuration (latent 16) gives
+# the foreign checkpoint; an older run has only latest.pt (a LibTorch archive: never read).
+setup_checkpoints() {
+  local edit=${BSMS_CHECKPOINT_EDIT:?set BSMS_CHECKPOINT_EDIT to the checkpoint_edit tool}
+  local ckpt=run/checkpoints/latest.h5 d r
+  "$bsms" train run.json --out run_latent16 --set model.latent=16 --set data="$tmp/data" \
+    --threads 1 >/dev/null 2>&1
+  for d in trunc flip shape drop nan other legacy; do
+    for r in ckpt_$d ckpt_${d}_r; do
+      cp -r run "$r"
+      case $d in
+        trunc) truncate_half "$r/checkpoints/latest.h5" ;;
+        flip) flip "$r/checkpoints/latest.h5" $(($(stat -c %s $ckpt) / 2)) ;;
+        shape) "$edit" $ckpt "$r/checkpoints/latest.h5" reshape model.encoder.first.bias ;;
+        drop) "$edit" $ckpt "$r/checkpoints/latest.h5" drop input_normalizer.sum ;;
+        nan) "$edit" $ckpt "$r/checkpoints/latest.h5" nan model.encoder.first.weight ;;
+        other) cp run_latent16/checkpoints/latest.h5 "$r/checkpoints/latest.h5" ;;
+        legacy) mv "$r/checkpoints/latest.h5" "$r/checkpoints/latest.pt" ;;
+      esac
+    done
+  done
+  cp -r ckpt_legacy ckpt_legacy_c
+  rm -rf run_latent16
 }
 
 run_case() {

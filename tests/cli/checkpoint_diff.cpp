@@ -1,46 +1,37 @@
-// checkpoint_diff A.pt B.pt TOL: compares the model tensors (parameters and buffers; the optimizer
+// checkpoint_diff A.h5 B.h5 TOL: compares the model tensors (parameters and buffers; the optimizer
 // state and the step aside) of two training checkpoints. Prints the largest |a - b| / (|b| + 1e-3)
 // and the tensor it is in; exit 0 when it is at most TOL and both hold the same tensors, 1 when
 // not, 2 when a file cannot be read. The distributed test uses it (2 ranks x b = 1 rank x 2b).
-#include <torch/serialize.h>
 #include <torch/torch.h>
 
 #include <iostream>
 #include <map>
 #include <string>
 
+#include "models/checkpoint.hpp"
+
 namespace {
 
-void collect(torch::serialize::InputArchive& archive, const std::string& prefix,
-             std::map<std::string, torch::Tensor>& out) {
-  for (const std::string& key : archive.keys()) {
-    if (prefix.empty() &&
-        (key == "optimizer" || key == "step" || key == "wall_s" || key == "losses"))
-      continue;
-    torch::Tensor t;
-    if (archive.try_read(key, t)) {
-      out[prefix + key] = t.to(torch::kFloat64);
-      continue;
-    }
-    torch::serialize::InputArchive sub;
-    if (archive.try_read(key, sub)) collect(sub, prefix + key + ".", out);
-  }
+// The model tensors of a checkpoint, read (and checked) as every bsms load reads them.
+std::map<std::string, torch::Tensor> model_tensors(const std::string& path) {
+  std::map<std::string, torch::Tensor> out;
+  for (const auto& t :
+       bsms::read_checkpoint_contents(path, bsms::read_checkpoint_bytes(path)).model)
+    out[t.name] = t.value.to(torch::kFloat64);
+  return out;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   if (argc != 4) {
-    std::cerr << "usage: checkpoint_diff A.pt B.pt TOL\n";
+    std::cerr << "usage: checkpoint_diff A.h5 B.h5 TOL\n";
     return 2;
   }
   std::map<std::string, torch::Tensor> a, b;
   try {
-    torch::serialize::InputArchive archive_a, archive_b;
-    archive_a.load_from(argv[1]);
-    archive_b.load_from(argv[2]);
-    collect(archive_a, "", a);
-    collect(archive_b, "", b);
+    a = model_tensors(argv[1]);
+    b = model_tensors(argv[2]);
   } catch (const std::exception& e) {
     std::cerr << "checkpoint_diff: cannot read: " << e.what() << "\n";
     return 2;

@@ -19,7 +19,7 @@
 #     killed one did not get that far); none once the run is complete;
 #   - the next session never fails (no "corrupt checkpoint", no other error).
 # When the run is complete it must equal the reference: the same model and optimizer state bit
-# for bit (digests of `bsms info RUN/checkpoints/latest.pt`), the same log rows and the same
+# for bit (digests of `bsms info RUN/checkpoints/latest.h5`), the same log rows and the same
 # final losses in train_stats.json. Should the sessions complete the run before KILLS kills, a
 # new run is started (a round) and checked the same way.
 set -u
@@ -62,7 +62,7 @@ log_rows() { # log_rows LOG: whole rows (newline-terminated) without wall_s, hea
   if [ -n "$(tail -c1 "$1")" ]; then sed '$d' "$1"; else cat "$1"; fi | tail -n +2 | cut -d, -f1,3-
 }
 digests() { # digests RUN: step and model/optimizer digests of the run's checkpoint
-  "$bsms" info "$1/checkpoints/latest.pt" | awk '/^  step /{print $1, $2} /digest/{print $1, $NF}'
+  "$bsms" info "$1/checkpoints/latest.h5" | awk '/^  step /{print $1, $2} /digest/{print $1, $NF}'
 }
 stat_of() { # stat_of FILE KEY: a value of train_stats.json
   sed -n "s/^ *\"$2\": *\\([^,]*\\),*\$/\\1/p" "$1"
@@ -118,7 +118,7 @@ declare -A landed
 while :; do
   sessions=$((sessions + 1))
   [ $sessions -le $((want_kills * 4)) ] || fail "too many sessions ($sessions)"
-  if [ -f $run/checkpoints/latest.pt ]; then mode=resume; else mode=fresh; fi
+  if [ -f $run/checkpoints/latest.h5 ]; then mode=resume; else mode=fresh; fi
   # Done once there are enough kills and one of them landed inside a checkpoint write (which
   # kinds the draws give depends on timing: a draw for a checkpoint write in a fresh session
   # becomes a start-up kill).
@@ -153,7 +153,7 @@ while :; do
       seen=0 last='' deadline=$((SECONDS + 30))
       shopt -s nullglob
       while kill -0 $pid 2>/dev/null && [ $SECONDS -le $deadline ]; do # (no fork in the loop)
-        tmp=("$run/checkpoints/latest.pt.tmp.$pid."*)
+        tmp=("$run/checkpoints/latest.h5.tmp.$pid."*)
         if [ ${#tmp[@]} -gt 0 ] && [ "${tmp[0]}" != "$last" ]; then
           last=${tmp[0]} seen=$((seen + 1))
           [ $seen -ge $delay ] && break
@@ -175,20 +175,20 @@ while :; do
     # Where it landed: a temporary file of the killed session names the write it was in.
     where=training-between-writes
     grep -q 'thread(s) ->' session.log || where='start-up'
-    if compgen -G "$run/checkpoints/latest.pt.tmp.$pid.*" >/dev/null; then
+    if compgen -G "$run/checkpoints/latest.h5.tmp.$pid.*" >/dev/null; then
       where=in-checkpoint-write in_checkpoint=$((in_checkpoint + 1))
     elif other=$(temporaries $run data_crash | grep "\.tmp\.$pid\."); then
       where="in-write:$(basename "$other" | sed 's/\.tmp\..*//')" # config, log, stats, cache
       in_other_write=$((in_other_write + 1))
     fi
-    if [ ! -f $run/checkpoints/latest.pt ]; then
+    if [ ! -f $run/checkpoints/latest.h5 ]; then
       where+=",before-first-checkpoint" before_first=$((before_first + 1))
     fi
     landed[$where]=$((${landed[$where]:-0} + 1))
     # The folder after the kill.
     ckpt_step=0
-    if [ -f $run/checkpoints/latest.pt ]; then
-      "$bsms" info $run/checkpoints/latest.pt >info.log 2>&1 ||
+    if [ -f $run/checkpoints/latest.h5 ]; then
+      "$bsms" info $run/checkpoints/latest.h5 >info.log 2>&1 ||
         fail "kill $kills: checkpoint unreadable: $(cat info.log)"
       ckpt_step=$(awk '/^  step /{print $2 + 0}' info.log)
     fi

@@ -37,7 +37,7 @@ cd "$work" || exit 1
 common=("$src/configs/train/disks2d-bsms.json" --set data=data --set valid_every=5
   --set valid_samples=1 --set normalizer_steps=2 --set model.levels=2 --set model.latent=16
   --set optimizer.warmup_steps=1 --threads 1)
-digest() { "$bsms" info "$1/checkpoints/latest.pt" | grep -i digest; }
+digest() { "$bsms" info "$1/checkpoints/latest.h5" | grep -i digest; }
 
 # 1. Equivalence --------------------------------------------------------------------------------
 "$bsms" train "${common[@]}" --set steps=20 --set optimizer.batch_size=2 --out one_b2 \
@@ -46,9 +46,9 @@ digest() { "$bsms" info "$1/checkpoints/latest.pt" | grep -i digest; }
   --timeout 20 >two_b1.log 2>&1 || { cat two_b1.log; fail "2 ranks x 1"; }
 "$bsms" train "${common[@]}" --set steps=20 --set optimizer.batch_size=1 --out one_b1 \
   >one_b1.log 2>&1 || { cat one_b1.log; fail "1 rank x 1"; }
-"$diff_tool" one_b2/checkpoints/latest.pt two_b1/checkpoints/latest.pt 1e-3 ||
+"$diff_tool" one_b2/checkpoints/latest.h5 two_b1/checkpoints/latest.h5 1e-3 ||
   fail "2 ranks x batch 1 differ from 1 rank x batch 2"
-"$diff_tool" one_b2/checkpoints/latest.pt one_b1/checkpoints/latest.pt 1e-3 >/dev/null &&
+"$diff_tool" one_b2/checkpoints/latest.h5 one_b1/checkpoints/latest.h5 1e-3 >/dev/null &&
   fail "1 rank x batch 1 equals 1 rank x batch 2: the comparison cannot fail"
 grep -q '"world_size": 2' two_b1/config.json || fail "config.json lacks world_size 2"
 [ "$(wc -l <two_b1/train_log.csv)" = 21 ] || fail "rank 0's log should hold 20 rows"
@@ -72,10 +72,10 @@ fault() {
     --nproc 2 --timeout 5 >"$name.log" 2>&1 &
   local launcher=$!
   for _ in $(seq 600); do
-    [ -f "$name/checkpoints/latest.pt" ] && break
+    [ -f "$name/checkpoints/latest.h5" ] && break
     sleep 0.1
   done
-  [ -f "$name/checkpoints/latest.pt" ] || { cat "$name.log"; fail "$name: no checkpoint"; }
+  [ -f "$name/checkpoints/latest.h5" ] || { cat "$name.log"; fail "$name: no checkpoint"; }
   local rank1
   rank1=$(pgrep -P $launcher | sort -n | tail -1)
   [ -n "$rank1" ] || fail "$name: rank 1 not found"
@@ -89,9 +89,9 @@ fault() {
   [ $took -le 40 ] || fail "$name: the others took ${took} s to stop (timeout 5 s)"
   grep -q "rank 0, step [0-9]*: all-reduce" "$name.log" || { cat "$name.log"; fail "$name: no line naming rank 0's step"; }
   grep -q "rank 1" "$name.log" || { cat "$name.log"; fail "$name: no line naming rank 1"; }
-  "$bsms" info "$name/checkpoints/latest.pt" >/dev/null || fail "$name: checkpoint unreadable"
+  "$bsms" info "$name/checkpoints/latest.h5" >/dev/null || fail "$name: checkpoint unreadable"
   local at
-  at=$("$bsms" info "$name/checkpoints/latest.pt" | sed -n 's/.*step \([0-9]*\).*/\1/p' | head -1)
+  at=$("$bsms" info "$name/checkpoints/latest.h5" | sed -n 's/.*step \([0-9]*\).*/\1/p' | head -1)
   [ -n "$at" ] || fail "$name: no step in bsms info"
   "$bsms" train "${common[@]}" --set steps=$((at + 3)) --set optimizer.batch_size=1 \
     --out "$name" --nproc 2 --timeout 20 --resume >"$name.resume.log" 2>&1 ||

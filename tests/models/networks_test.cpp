@@ -344,7 +344,7 @@ TEST_F(CheckpointTest, RoundTripGivesIdenticalOutputs) {
   auto p = make_problem(6, 5, 3, true);
   Simulator a(16);
   a.input_norm->accumulate(3 * p.nodes + 1);
-  const auto file = path("model.pt");
+  const auto file = path("model.h5");
   save_module(a, file);
   torch::manual_seed(99);
   Simulator b(16);
@@ -358,7 +358,7 @@ TEST_F(CheckpointTest, RoundTripGivesIdenticalOutputs) {
 }
 
 TEST_F(CheckpointTest, MismatchedShapesThrowNamingFileAndEntry) {
-  const auto file = path("small.pt");
+  const auto file = path("small.h5");
   save_module(Simulator(8), file);
   Simulator big(16);
   auto before = big.net->parameters()[0].clone();
@@ -371,9 +371,9 @@ TEST_F(CheckpointTest, MismatchedShapesThrowNamingFileAndEntry) {
     EXPECT_NE(what.find("net.encoder.first.weight"), std::string::npos) << what;
   }
   EXPECT_TRUE(torch::equal(before, big.net->parameters()[0]));  // untouched on error
-  EXPECT_THROW(load_module(big, path("missing.pt")), InputError);
+  EXPECT_THROW(load_module(big, path("missing.h5")), InputError);
   MeshGraphNets other(lagrangian_options(3, 16));
-  const auto other_file = path("mgn.pt");
+  const auto other_file = path("mgn.h5");
   save_module(other, other_file);
   EXPECT_THROW(load_module(big, other_file), InputError);
 }

@@ -17,7 +17,10 @@
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
 #include "gif_frames.hpp"
+#include "models/checkpoint.hpp"
+#include "models/fused_adam.hpp"
 #include "pipeline/animation.hpp"
+#include "pipeline/legacy_checkpoint.hpp"
 #include "pipeline/plotting.hpp"
 #include "pipeline/report.hpp"
 #include "pipeline/rollout.hpp"
@@ -607,6 +610,84 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   int lines = 0;
   for (std::string line; std::getline(log, line);) ++lines;
   EXPECT_EQ(lines, 41);
+}
+
+// A run older bsms left (RUN/checkpoints/latest.pt, a LibTorch archive, no latest.h5) is refused
+// by train --resume and rollout, and convert_torch_checkpoint turns it, once, into the same
+// latest.h5: equal tensors, Adam state and step, and the run resumes from it.
+TEST_F(PipelineTest, OlderTorchCheckpointIsRefusedThenConvertedOnce) {
+  TrainRequest r;
+  r.config_path = write_config(dir_, dir_ / "data", "mgn", 6);
+  r.out = (dir_ / "run_legacy").string();
+  r.threads = 1;
+  r.quiet = true;
+  r.until = 3;
+  fs::remove_all(r.out);
+  train(r);
+  const std::string h5 = run_checkpoint_path(r.out), pt = legacy_checkpoint_path(h5);
+  const Json cfg = load_json_file(run_config_path(r.out));
+  const LagrangianSpec spec = lagrangian_spec_from_json(cfg["features_resolved"], "config");
+  const TrainConfig config = parse_train_config(cfg["config"], "config");
+  LearnedSimulator sim(spec, config.model, cfg["levels"].get<int>());
+  FusedAdam optimizer(sim.parameters(), torch::optim::AdamOptions(config.optimizer.lr));
+  const CheckpointInfo info = load_checkpoint(h5, sim, &optimizer);
+  {  // written as older bsms wrote it
+    torch::serialize::OutputArchive archive, optimizer_archive;
+    sim.save(archive);
+    optimizer.save(optimizer_archive);
+    archive.write("optimizer", optimizer_archive);
+    archive.write("step", torch::tensor({info.step}, torch::kInt64));
+    archive.write("wall_s", torch::tensor({info.wall_s}, torch::kFloat64));
+    archive.write("losses", torch::tensor({info.loss, info.valid_loss, info.valid_baseline},
+                                          torch::kFloat64));
+    archive.save_to(pt);
+  }
+  const std::string original = h5 + ".original";
+  fs::rename(h5, original);
+
+  r.until = 0;
+  r.resume = true;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    try {
+      if (attempt == 0) {
+        train(r);
+      } else {
+        RolloutRequest q;
+        q.run = r.out;
+        q.quiet = true;
+        rollout(q);
+      }
+      FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("latest.pt: a LibTorch archive"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_FALSE(fs::exists(h5));
+
+  EXPECT_EQ(convert_torch_checkpoint(r.out).step, 3);
+  EXPECT_THROW(convert_torch_checkpoint(r.out), InputError);  // once
+  const CheckpointContents a = read_checkpoint_contents(h5, read_checkpoint_bytes(h5));
+  const CheckpointContents b = read_checkpoint_contents(original, read_checkpoint_bytes(original));
+  ASSERT_EQ(a.model.size(), b.model.size());
+  for (size_t i = 0; i < a.model.size(); ++i) {
+    EXPECT_EQ(a.model[i].name, b.model[i].name);
+    EXPECT_TRUE(torch::equal(a.model[i].value, b.model[i].value)) << a.model[i].name;
+  }
+  ASSERT_EQ(a.slots.size(), b.slots.size());
+  for (size_t i = 0; i < a.slots.size(); ++i) {
+    EXPECT_EQ(a.slots[i].parameter, b.slots[i].parameter);
+    EXPECT_EQ(a.slots[i].step, b.slots[i].step);
+    EXPECT_TRUE(torch::equal(a.slots[i].exp_avg, b.slots[i].exp_avg));
+    EXPECT_TRUE(torch::equal(a.slots[i].exp_avg_sq, b.slots[i].exp_avg_sq));
+  }
+  // (The learning rate is the schedule's, set before every step: LibTorch's archive loader never
+  // restored it, the conversion does not either.)
+  ASSERT_EQ(a.groups.size(), 1u);
+  EXPECT_EQ(a.groups[0].eps, b.groups[0].eps);
+  EXPECT_EQ(a.state.step, 3);
+  EXPECT_EQ(a.state.wall_s, b.state.wall_s);
+  EXPECT_EQ(train(r).steps, 6);
 }
 
 // Without a valid split the run validates on training frames and says so (one warning line, and
