@@ -20,6 +20,7 @@
 
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
+#include "core/hdf5_file.hpp"
 #include "core/msh_reader.hpp"
 
 namespace bsms {
@@ -390,6 +391,7 @@ void check_mesh_file(const std::string& path) {
   std::ifstream probe(path);
   if (!probe) throw InputError(path + ": mesh file is not readable");
   if (fs::file_size(path, ec) == 0) throw InputError(path + ": mesh file is empty");
+  register_input(path);
 }
 
 // The first bytes of a file (enough for its $MeshFormat line).
