@@ -71,12 +71,15 @@ bench: build
 # libgmsh 4.8 itself crashes after a few thousand models in one process (fuzz/fuzz_mesh.cpp).
 FUZZ_SECONDS ?= 120
 FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_tfrecord
+# datasets: real files damaged byte-wise (fuzz/fuzz_dataset_bytes.cpp), ~1.2k/s on that machine.
+FUZZ_TARGETS += fuzz_dataset_bytes
 ifneq ($(origin FUZZ_SECONDS),command line)
 FUZZ_SECONDS_fuzz_config ?= 360
 FUZZ_SECONDS_fuzz_multilevel ?= 3000
 FUZZ_SECONDS_fuzz_dataset ?= 3000
 FUZZ_SECONDS_fuzz_tfrecord ?= 480
 FUZZ_SECONDS_fuzz_msh ?= 60
+FUZZ_SECONDS_fuzz_dataset_bytes ?= 900
 endif
 FUZZ_MAX_LEN_fuzz_config := 8192
 FUZZ_MAX_LEN_fuzz_multilevel := 4096
@@ -84,6 +87,7 @@ FUZZ_MAX_LEN_fuzz_dataset := 4096
 FUZZ_MAX_LEN_fuzz_mesh := 2048
 FUZZ_MAX_LEN_fuzz_msh := 8192
 FUZZ_MAX_LEN_fuzz_tfrecord := 262144
+FUZZ_MAX_LEN_fuzz_dataset_bytes := 64
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev"
@@ -97,7 +101,7 @@ fuzz: deps
 	  > $(FUZZ_CORPUS)/fuzz_config/set_scene.json
 	{ cat configs/families/disks2d.json; printf '\0sample.count=[1,3]\0scene.background.min=[0]'; } \
 	  > $(FUZZ_CORPUS)/fuzz_config/set_family.json
-	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh; do \
+	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_dataset_bytes; do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
 	for d in tests/fixtures/meshgraphnets/*; do n=$$(basename $$d); \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_tfrecord/meta_$$n.json; \
