@@ -390,7 +390,7 @@ namespace {
 // The checks every dataset mesh passes where it is read, naming the file and the trajectory:
 // shapes, finite positions inside the bound, cells of distinct in-range nodes, node types in
 // their set. Later stages (graphs, one-hot inputs, the solver's mesh checks) may then trust them.
-void check_mesh(const TrajectoryMesh& m, const std::string& where, bool public_layout) {
+void check_mesh(const TrajectoryMesh& m, const std::string& where, bool bsms_node_types) {
   if (m.dim < 1 || m.dim > 3)
     throw InputError(where + ": mesh_pos has " + std::to_string(m.dim) +
                      " components per node, expected 1 to 3");
@@ -418,10 +418,11 @@ void check_mesh(const TrajectoryMesh& m, const std::string& where, bool public_l
                            std::to_string(cell[a]) + " (degenerate cell)");
     }
   }
-  // bsms data: NodeType 0..3; public data keeps its own codes (MeshGraphNets: 0..8), one-hot
-  // encoded with at most 64 classes.
+  // Simulated data (bsms generate: a scene) has NodeType 0..3; public data keeps its own codes
+  // (MeshGraphNets: 0..8), also in bsms files converted from it or rolled out on it (scene "{}"),
+  // one-hot encoded with at most 64 classes.
   const int32_t max_type =
-      public_layout ? kMaxPublicNodeType : static_cast<int32_t>(NodeType::kSlip);
+      bsms_node_types ? static_cast<int32_t>(NodeType::kSlip) : kMaxPublicNodeType;
   for (int64_t i = 0; i < n; ++i)
     if (m.node_type[i] < 0 || m.node_type[i] > max_type)
       throw InputError(where + ": node_type of node " + std::to_string(i) + " is " +
@@ -487,7 +488,7 @@ const TrajectoryMesh& Dataset::mesh(int64_t t) const {
       m.body_id.assign(n, 0);
     }
   }
-  check_mesh(m, describe(t), impl_->public_layout);
+  check_mesh(m, describe(t), !impl_->public_layout && impl_->scene != "{}");
   return impl_->meshes.emplace(t, std::move(m)).first->second;
 }
 

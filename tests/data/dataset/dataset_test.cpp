@@ -124,7 +124,8 @@ TEST(Dataset, ReadChecksValuesAndNamesFileTrajectoryFieldFrameNode) {
   const fs::path dir = temp_dir("values");
   const std::string path = (dir / "train.h5").string();
   auto write = [&] {
-    DatasetWriter w(path, "{}", 2, 0.01);
+    // A scene: simulated data, whose node types are bsms's 0..3.
+    DatasetWriter w(path, R"({"name": "disks2d"})", 2, 0.01);
     w.add(make_trajectory(1, 4));
     w.add(make_trajectory(2, 4));
     w.commit();
@@ -169,6 +170,17 @@ TEST(Dataset, ReadChecksValuesAndNamesFileTrajectoryFieldFrameNode) {
   EXPECT_NE(error_of([&] {
               Dataset(path).mesh(0);
             }).find("train.h5: trajectory 0: node_type of node 2 is 9, expected 0..3"),
+            std::string::npos);
+  // Public data converted to a bsms file (no scene) keeps its codes: 0..63.
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(1, 4));
+    w.commit();
+  }
+  set_value<int32_t>(path, "/trajectories/000000/node_type", 2, 9);
+  EXPECT_EQ(Dataset(path).mesh(0).node_type[2], 9);
+  set_value<int32_t>(path, "/trajectories/000000/node_type", 2, 64);
+  EXPECT_NE(error_of([&] { Dataset(path).mesh(0); }).find("is 64, expected 0..63"),
             std::string::npos);
   write();
   set_value<int32_t>(path, "/trajectories/000001/cells", 4, 0);
