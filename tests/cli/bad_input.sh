@@ -75,6 +75,8 @@ setup_datasets() {
   name_at=$(grep -obUa 000000 heap_flip.h5 | head -1 | cut -d: -f1)
   heap_at=$(grep -obUa HEAP heap_flip.h5 | awk -F: -v n="$name_at" '$1 < n { o = $1 } END { print o }')
   flip heap_flip.h5 "$heap_at"
+  # A generate folder with two of its three splits (a partial copy, an older bsms).
+  mkdir data_no_test && cp data/train.h5 data/valid.h5 data/generate.json data_no_test/
   # Two shard runs into one folder: all three parts, not merged; the test trajectory's part is
   # then cut short, as a full disk or a bad copy would leave it.
   for k in 1 2; do
