@@ -124,6 +124,14 @@ std::vector<std::vector<uint8_t>> seeds() {
     const uint16_t cut = static_cast<uint16_t>(size / 4 - 1);
     out.push_back({mode, static_cast<uint8_t>(cut & 0xff), static_cast<uint8_t>(cut >> 8)});
   }
+  // Found by this target, kept as regressions: a chunk record whose filter mask lost its deflate
+  // bit (libhdf5 copied a whole chunk out of a 60-byte buffer), and a damaged chunk record that
+  // made libhdf5 allocate 2.3 GB, and one whose stored size under 4 bytes made libhdf5's
+  // Fletcher-32 read far out of bounds.
+  out.push_back({0x00, 0x00, 0x00, 0x54, 0x12, 0x01});
+  out.push_back(
+      {0x3e, 0x00, 0x00, 0x2b, 0x27, 0x89, 0x5b, 0x89, 0x89, 0x89, 0x89, 0x8d, 0x2c, 0x03});
+  out.push_back({0x9a, 0x00, 0x00, 0x7c, 0x7e, 0x42, 0x23});
   return out;
 }
 

@@ -78,7 +78,8 @@ hsize_t checked_elements(const std::string& path, const Shape& dims, size_t valu
 // numeric type of at most 8 bytes, stored bytes no more than the file holds, and for each chunk
 // read a record that fits the file and, where no decompressing filter was applied (filter mask),
 // a stored size equal to the chunk's. libhdf5 1.10 trusts these records: it allocates what they
-// state (gigabytes) and copies a whole chunk out of a shorter buffer.
+// state (gigabytes), copies a whole chunk out of a shorter buffer, and checksums a chunk of under
+// 4 bytes over an underflowed length.
 void check_stored(hid_t set, const std::string& path, const std::string& name, const Shape& offset,
                   const Shape& count) {
   Handle type(H5Dget_type(set));
@@ -129,6 +130,8 @@ void check_stored(hid_t set, const std::string& path, const std::string& name, c
       throw InputError(damaged);
     if (address != HADDR_UNDEF) {
       if (address > file_bytes || size > file_bytes - address) throw InputError(damaged);
+      // Fletcher-32 checksums the bytes before its own 4: a shorter chunk underflows that length.
+      if (size == 0 || ((checksum_bits & ~mask) && size <= 4)) throw InputError(damaged);
       if ((other_bits & ~mask) == 0) {
         const long double expected = chunk_bytes + ((checksum_bits & ~mask) ? 4 : 0);
         if (static_cast<long double>(size) != expected) throw InputError(damaged);
