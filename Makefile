@@ -71,6 +71,8 @@ bench: build
 # libgmsh 4.8 itself crashes after a few thousand models in one process (fuzz/fuzz_mesh.cpp).
 FUZZ_SECONDS ?= 120
 FUZZ_TARGETS := fuzz_config fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_tfrecord fuzz_json fuzz_geo
+# datasets: real files damaged byte-wise (fuzz/fuzz_dataset_bytes.cpp), ~1.2k/s on that machine.
+FUZZ_TARGETS += fuzz_dataset_bytes
 ifneq ($(origin FUZZ_SECONDS),command line)
 FUZZ_SECONDS_fuzz_config ?= 360
 FUZZ_SECONDS_fuzz_multilevel ?= 3000
@@ -81,6 +83,7 @@ FUZZ_SECONDS_fuzz_json ?= 360
 # gmsh scripts: fuzz_geo, the check of .geo scripts before they run (~0.5-1.2k/s), seeded from
 # configs/geometry and its own seeds
 FUZZ_SECONDS_fuzz_geo ?= 900
+FUZZ_SECONDS_fuzz_dataset_bytes ?= 900
 endif
 FUZZ_MAX_LEN_fuzz_config := 8192
 FUZZ_MAX_LEN_fuzz_multilevel := 4096
@@ -98,6 +101,7 @@ ifneq ($(origin FUZZ_SECONDS),command line)
 FUZZ_SECONDS_fuzz_checkpoint ?= 900
 endif
 FUZZ_MAX_LEN_fuzz_checkpoint := 16384
+FUZZ_MAX_LEN_fuzz_dataset_bytes := 64
 FUZZ_CORPUS = $(RUNS)/fuzz-corpus
 fuzz: deps
 	$(MAKE) deps DEPS="clang libclang-rt-14-dev"
@@ -114,7 +118,7 @@ fuzz: deps
 	cp configs/train/*.json configs/families/*.json $(FUZZ_CORPUS)/fuzz_json/
 	for d in tests/fixtures/meshgraphnets/*; do \
 	  cp $$d/meta.json $(FUZZ_CORPUS)/fuzz_json/meta_$$(basename $$d).json; done
-	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_json $(FUZZ_SEED_TARGETS); do \
+	for t in fuzz_multilevel fuzz_dataset fuzz_mesh fuzz_msh fuzz_json fuzz_dataset_bytes $(FUZZ_SEED_TARGETS); do \
 	  BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/$$t build-fuzz/fuzz/$$t || exit 1; done
 	BSMS_FUZZ_WRITE_SEEDS=$(FUZZ_CORPUS)/fuzz_geo build-fuzz/fuzz/fuzz_geo && \
 	  cp configs/geometry/*.geo $(FUZZ_CORPUS)/fuzz_geo/

@@ -159,9 +159,12 @@ MultilevelGraph read_multilevel_graph(const std::string& path) {
                          " entries, expected one per edge of level " + std::to_string(k - 1) +
                          " (" + std::to_string(fine.graph.num_edges()) + ")");
       for (size_t e = 0; e < level.down_weight.size(); ++e) {
-        if (!std::isfinite(level.down_weight[e]) || level.down_weight[e] < 0.0f) {
+        // Each weight is a share of a coarse node's incoming spread (bi_stride_pooling.cpp): in
+        // 0..1, with room for float rounding.
+        if (!(level.down_weight[e] >= 0.0f && level.down_weight[e] <= 1.001f)) {
           throw InputError(path + ": " + group + "/down_weight: entry " + std::to_string(e) +
-                           " is negative or not finite");
+                           " is " + std::to_string(level.down_weight[e]) +
+                           ", expected a share in 0..1");
         }
       }
     }

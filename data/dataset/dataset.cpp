@@ -1,8 +1,11 @@
 #include "data/dataset/dataset.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <mutex>
+#include <set>
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
@@ -13,6 +16,44 @@ namespace fs = std::filesystem;
 
 bool is_static_field(const std::string& name) {
   return name == "cells" || name == "mesh_pos" || name == "node_type" || name == "body_id";
+}
+
+double value_bound(const std::string& field) {
+  return field == "mesh_pos" || field == "world_pos" || field == "velocity" ? kPositionBound
+                                                                            : kFieldBound;
+}
+
+namespace {
+
+std::string number_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+}  // namespace
+
+void check_field_values(const float* values, size_t count, int64_t nodes, int64_t width,
+                        int64_t first_frame, const std::string& where, const std::string& field) {
+  const float bound = static_cast<float>(value_bound(field));
+  // One branch-free pass (vectorised): a NaN fails the comparison like an out-of-range value.
+  size_t bad = 0;
+  for (size_t i = 0; i < count; ++i) bad += !(std::fabs(values[i]) <= bound);
+  if (bad == 0) return;
+  size_t i = 0;
+  while (std::fabs(values[i]) <= bound) ++i;
+  const int64_t per_frame = std::max<int64_t>(nodes * width, 1);
+  const int64_t flat = static_cast<int64_t>(i);
+  const int64_t node = (flat % per_frame) / std::max<int64_t>(width, 1);
+  std::string at = where + ", field '" + field + "'";
+  if (first_frame >= 0) at += " frame " + std::to_string(first_frame + flat / per_frame);
+  at += " node " + std::to_string(node);
+  if (width > 1) at += " component " + std::to_string(flat % width);
+  const bool position = value_bound(field) == kPositionBound;
+  throw InputError(at + ": " + number_text(values[i]) + ", expected a finite value within ±" +
+                   number_text(bound) + " (the bound on " +
+                   (position ? "positions and velocities" : "fields other than positions") +
+                   ", docs/hardening.md)");
 }
 
 const char* layout_name(DatasetLayout layout) {
@@ -48,6 +89,8 @@ struct Dataset::Impl {
   mutable std::mutex mutex;
   mutable std::map<int64_t, TrajectoryMesh> meshes;
   mutable std::map<int64_t, std::unique_ptr<H5File>> open_files;
+  // Trajectories whose every dynamic value was checked (Dataset::read, first access).
+  mutable std::set<int64_t> checked;
 
   const H5File& file_of(int64_t t) const {
     if (layout != DatasetLayout::kPublicFolder) return *file;
@@ -248,6 +291,14 @@ Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) 
     }
   }
   if (d.fields.empty()) throw InputError(location + ": no dynamic fields ([T, N, ...] datasets)");
+  // No output of this process may replace the data it reads (hdf5_file.hpp, AtomicOutput).
+  if (d.records) {
+    register_input(location);
+    register_input((fs::path(location).parent_path() / "meta.json").string());
+  } else if (d.file) {
+    register_input(location);
+  }
+  for (const auto& path : d.public_files) register_input(path);
 }
 
 Dataset Dataset::open_split(const std::string& dir, const std::string& split) {
@@ -334,52 +385,110 @@ int64_t Dataset::num_frames(int64_t t) const {
   return static_cast<int64_t>(field_shape(f, impl_->prefix(t) + impl_->fields[0].name)[0]);
 }
 
+namespace {
+
+// The checks every dataset mesh passes where it is read, naming the file and the trajectory:
+// shapes, finite positions inside the bound, cells of distinct in-range nodes, node types in
+// their set. Later stages (graphs, one-hot inputs, the solver's mesh checks) may then trust them.
+void check_mesh(const TrajectoryMesh& m, const std::string& where, bool bsms_node_types) {
+  if (m.dim < 1 || m.dim > 3)
+    throw InputError(where + ": mesh_pos has " + std::to_string(m.dim) +
+                     " components per node, expected 1 to 3");
+  const int64_t n = m.num_nodes();
+  if (n == 0 || static_cast<int64_t>(m.mesh_pos.size()) != n * m.dim)
+    throw InputError(where + ": mesh_pos has " + std::to_string(m.mesh_pos.size()) +
+                     " values for " + std::to_string(n) + " nodes of dimension " +
+                     std::to_string(m.dim));
+  if (m.cell_size < 2 || m.cell_size > m.dim + 1 || m.cells.empty() ||
+      m.cells.size() % static_cast<size_t>(m.cell_size) != 0)
+    throw InputError(where + ": cells must be [C, k] with C >= 1 and k in 2.." +
+                     std::to_string(m.dim + 1) + " (lines to simplices of the mesh dimension " +
+                     std::to_string(m.dim) + "), got k = " + std::to_string(m.cell_size));
+  check_field_values(m.mesh_pos.data(), m.mesh_pos.size(), n, m.dim, -1, where, "mesh_pos");
+  const int k = m.cell_size;
+  for (int64_t c = 0; c < m.num_cells(); ++c) {
+    const int32_t* cell = &m.cells[static_cast<size_t>(c * k)];
+    for (int a = 0; a < k; ++a) {
+      if (cell[a] < 0 || cell[a] >= n)
+        throw InputError(where + ": cells: cell " + std::to_string(c) + " references node " +
+                         std::to_string(cell[a]) + " outside 0.." + std::to_string(n - 1));
+      for (int b = 0; b < a; ++b)
+        if (cell[b] == cell[a])
+          throw InputError(where + ": cells: cell " + std::to_string(c) + " repeats node " +
+                           std::to_string(cell[a]) + " (degenerate cell)");
+    }
+  }
+  // Simulated data (bsms generate: a scene) has NodeType 0..3; public data keeps its own codes
+  // (MeshGraphNets: 0..8), also in bsms files converted from it or rolled out on it (scene "{}"),
+  // one-hot encoded with at most 64 classes.
+  const int32_t max_type =
+      bsms_node_types ? static_cast<int32_t>(NodeType::kSlip) : kMaxPublicNodeType;
+  for (int64_t i = 0; i < n; ++i)
+    if (m.node_type[i] < 0 || m.node_type[i] > max_type)
+      throw InputError(where + ": node_type of node " + std::to_string(i) + " is " +
+                       std::to_string(m.node_type[i]) + ", expected 0.." +
+                       std::to_string(max_type));
+  if (static_cast<int64_t>(m.body_id.size()) != n)
+    throw InputError(where + ": body_id has " + std::to_string(m.body_id.size()) + " entries for " +
+                     std::to_string(n) + " nodes");
+  for (int64_t i = 0; i < n; ++i)
+    if (m.body_id[i] < 0)
+      throw InputError(where + ": body_id of node " + std::to_string(i) + " is " +
+                       std::to_string(m.body_id[i]) + ", expected >= 0");
+}
+
+}  // namespace
+
+std::string Dataset::describe(int64_t t) const {
+  const std::string file =
+      impl_->layout == DatasetLayout::kPublicFolder ? impl_->public_files[t] : impl_->location;
+  return file + ": trajectory " + std::to_string(t);
+}
+
 const TrajectoryMesh& Dataset::mesh(int64_t t) const {
   check_index(*this, t);
   std::lock_guard<std::mutex> lock(impl_->mutex);
   auto it = impl_->meshes.find(t);
   if (it != impl_->meshes.end()) return it->second;
+  TrajectoryMesh m;
   if (impl_->records) {
     tfrecord::MeshArrays a = impl_->records->read_mesh(t);
-    TrajectoryMesh m;
     m.dim = a.dim;
     m.cell_size = a.cell_size;
     m.mesh_pos = std::move(a.mesh_pos);
     m.cells = std::move(a.cells);
     m.node_type = std::move(a.node_type);
     m.body_id.assign(m.node_type.size(), 0);
-    return impl_->meshes.emplace(t, std::move(m)).first->second;
-  }
-  const H5File& f = impl_->file_of(t);
-  const std::string p = impl_->prefix(t);
-  TrajectoryMesh m;
-  Shape pos_shape, cell_shape, type_shape;
-  m.mesh_pos = read_static<float>(f, p + "mesh_pos", 2, &pos_shape);
-  m.cells = read_static<int32_t>(f, p + "cells", 2, &cell_shape);
-  Shape raw_type = f.shape(p + "node_type");
-  // node_type: [N], [N, 1], [1, N, 1] or [T, N, 1].
-  const size_t base = (raw_type.size() >= 2 && raw_type.back() == 1) ? 2 : 1;
-  m.node_type = read_static<int32_t>(f, p + "node_type", base, &type_shape);
-  if (pos_shape.size() != 2 || cell_shape.size() != 2)
-    throw InputError(f.path() + ": mesh_pos must be [N, dim] and cells [C, k]");
-  m.dim = static_cast<int>(pos_shape[1]);
-  m.cell_size = static_cast<int>(cell_shape[1]);
-  const int64_t n = static_cast<int64_t>(pos_shape[0]);
-  if (m.num_nodes() != n)
-    throw InputError(f.path() + ": node_type has " + std::to_string(m.num_nodes()) +
-                     " entries, mesh_pos " + std::to_string(n) + " nodes");
-  if (f.exists(p + "body_id")) {
-    Shape body_shape;
-    m.body_id = read_static<int32_t>(f, p + "body_id", 1, &body_shape);
-    if (static_cast<int64_t>(m.body_id.size()) != n)
-      throw InputError(f.path() + ": body_id has " + std::to_string(m.body_id.size()) +
-                       " entries, mesh_pos " + std::to_string(n) + " nodes");
   } else {
-    m.body_id.assign(n, 0);
+    const H5File& f = impl_->file_of(t);
+    const std::string p = impl_->prefix(t);
+    Shape pos_shape, cell_shape, type_shape;
+    m.mesh_pos = read_static<float>(f, p + "mesh_pos", 2, &pos_shape);
+    m.cells = read_static<int32_t>(f, p + "cells", 2, &cell_shape);
+    Shape raw_type = f.shape(p + "node_type");
+    // node_type: [N], [N, 1], [1, N, 1] or [T, N, 1].
+    const size_t base = (raw_type.size() >= 2 && raw_type.back() == 1) ? 2 : 1;
+    m.node_type = read_static<int32_t>(f, p + "node_type", base, &type_shape);
+    if (pos_shape.size() != 2 || cell_shape.size() != 2)
+      throw InputError(describe(t) + ": mesh_pos must be [N, dim] and cells [C, k]");
+    if (pos_shape[1] > 3 || cell_shape[1] > 8)
+      throw InputError(describe(t) + ": mesh_pos [N, " + std::to_string(pos_shape[1]) +
+                       "] or cells [C, " + std::to_string(cell_shape[1]) +
+                       "] is too wide (dim 1..3, cells of 2..4 nodes)");
+    m.dim = static_cast<int>(pos_shape[1]);
+    m.cell_size = static_cast<int>(cell_shape[1]);
+    const int64_t n = static_cast<int64_t>(pos_shape[0]);
+    if (m.num_nodes() != n)
+      throw InputError(describe(t) + ": node_type has " + std::to_string(m.num_nodes()) +
+                       " entries, mesh_pos " + std::to_string(n) + " nodes");
+    if (f.exists(p + "body_id")) {
+      Shape body_shape;
+      m.body_id = read_static<int32_t>(f, p + "body_id", 1, &body_shape);
+    } else {
+      m.body_id.assign(n, 0);
+    }
   }
-  for (int32_t c : m.cells)
-    if (c < 0 || c >= n)
-      throw InputError(f.path() + ": cell index " + std::to_string(c) + " out of range");
+  check_mesh(m, describe(t), !impl_->public_layout && impl_->scene != "{}");
   return impl_->meshes.emplace(t, std::move(m)).first->second;
 }
 
@@ -405,23 +514,79 @@ double Dataset::solver_wall_s(int64_t t) const {
   return impl_->file->attr_double(impl_->groups[t], "solver_wall_s");
 }
 
+std::vector<float> Dataset::read_unchecked(int64_t t, const std::string& field, int64_t t0,
+                                           int64_t count, int64_t nodes) const {
+  int64_t width = 1;
+  for (const auto& f : impl_->fields)
+    if (f.name == field) width = f.width;
+  std::vector<float> out;
+  if (impl_->records) {
+    out = impl_->records->read_float(t, field, t0, count);
+  } else {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    const H5File& f = impl_->file_of(t);
+    const std::string name = impl_->prefix(t) + field;
+    const Shape dims = field_shape(f, name);
+    if (t0 < 0 || count < 0 || static_cast<hsize_t>(t0) > dims[0] ||
+        static_cast<hsize_t>(count) > dims[0] - static_cast<hsize_t>(t0))
+      throw InputError(f.path() + ": frames " + std::to_string(t0) + ".." +
+                       std::to_string(t0 + count - 1) + " of '" + field +
+                       "' out of range (T=" + std::to_string(dims[0]) + ")");
+    const int64_t have_width = dims.size() == 3 ? static_cast<int64_t>(dims[2]) : 1;
+    if (dims.size() > 3 || static_cast<int64_t>(dims[1]) != nodes || have_width != width)
+      throw InputError(describe(t) + ": field '" + field + "' has shape [" +
+                       std::to_string(dims[0]) + ", " + std::to_string(dims[1]) +
+                       (dims.size() >= 3 ? ", " + std::to_string(dims[2]) : std::string()) +
+                       (dims.size() > 3 ? ", ..." : "") + "], expected [T, " +
+                       std::to_string(nodes) + (width > 1 ? ", " + std::to_string(width) : "") +
+                       "] (the mesh has " + std::to_string(nodes) + " nodes)");
+    Shape offset(dims.size(), 0), extent = dims;
+    offset[0] = static_cast<hsize_t>(t0);
+    extent[0] = static_cast<hsize_t>(count);
+    out = f.read_slab<float>(name, offset, extent);
+  }
+  if (static_cast<int64_t>(out.size()) != count * nodes * width)
+    throw InputError(describe(t) + ": field '" + field + "' holds " + std::to_string(out.size()) +
+                     " values for " + std::to_string(count) + " frame(s) of " +
+                     std::to_string(nodes) + " nodes x " + std::to_string(width));
+  return out;
+}
+
+void Dataset::check_trajectory(int64_t t) const {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->checked.count(t)) return;
+  }
+  const int64_t nodes = mesh(t).num_nodes();
+  // Every dynamic field once, in blocks of frames (bounded memory): a value a model never reads
+  // (bsms data's stored velocity, say) is still damage in the file, and reported as such.
+  for (const auto& f : impl_->fields) {
+    int64_t frames = 0;
+    if (impl_->records) {
+      frames = impl_->records->meta().trajectory_length;
+    } else {
+      std::lock_guard<std::mutex> lock(impl_->mutex);
+      const H5File& file = impl_->file_of(t);
+      frames = static_cast<int64_t>(field_shape(file, impl_->prefix(t) + f.name)[0]);
+    }
+    const int64_t block =
+        std::max<int64_t>(1, (int64_t{1} << 22) / std::max<int64_t>(nodes * f.width, 1));
+    for (int64_t t0 = 0; t0 < frames; t0 += block) {
+      const int64_t count = std::min(block, frames - t0);
+      const std::vector<float> values = read_unchecked(t, f.name, t0, count, nodes);
+      check_field_values(values.data(), values.size(), nodes, f.width, t0, describe(t), f.name);
+    }
+  }
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->checked.insert(t);
+}
+
 std::vector<float> Dataset::read(int64_t t, const std::string& field, int64_t t0,
                                  int64_t count) const {
   check_index(*this, t);
   if (!has_field(field)) throw InputError(impl_->location + ": no field '" + field + "'");
-  if (impl_->records) return impl_->records->read_float(t, field, t0, count);
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  const H5File& f = impl_->file_of(t);
-  const std::string name = impl_->prefix(t) + field;
-  const Shape dims = field_shape(f, name);
-  if (t0 < 0 || count < 0 || static_cast<hsize_t>(t0 + count) > dims[0])
-    throw InputError(f.path() + ": frames " + std::to_string(t0) + ".." +
-                     std::to_string(t0 + count - 1) + " of '" + field +
-                     "' out of range (T=" + std::to_string(dims[0]) + ")");
-  Shape offset(dims.size(), 0), extent = dims;
-  offset[0] = static_cast<hsize_t>(t0);
-  extent[0] = static_cast<hsize_t>(count);
-  return f.read_slab<float>(name, offset, extent);
+  check_trajectory(t);
+  return read_unchecked(t, field, t0, count, mesh(t).num_nodes());
 }
 
 }  // namespace bsms

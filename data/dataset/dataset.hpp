@@ -62,6 +62,22 @@ constexpr const char* kDatasetFormat = "bsms-dataset";
 constexpr int64_t kDatasetVersion = 1;
 bool is_static_field(const std::string& name);
 
+// Bounds on the values a dataset may hold, checked where they are read (Dataset::mesh and
+// Dataset::read; docs/hardening.md): |mesh_pos|, |world_pos| (m) and |velocity| (m/s) at most
+// kPositionBound, every other field (stress, pressure, density) at most kFieldBound; NaN and
+// infinity never. Real scenes are orders of magnitude inside them; a value beyond is damage or a
+// units mistake, refused before it reaches training as an inf loss or a cast of 3e38.
+constexpr double kPositionBound = 1e6;
+constexpr double kFieldBound = 1e15;
+// Node types of public data (MeshGraphNets codes 0..8), one-hot encoded with at most 64 classes.
+constexpr int32_t kMaxPublicNodeType = 63;
+double value_bound(const std::string& field);
+// Throws InputError naming `where` (file and trajectory), the field, the first bad frame (when
+// first_frame >= 0), node and component, unless every value is finite and within value_bound.
+// `values` is [frames, nodes, width] flattened.
+void check_field_values(const float* values, size_t count, int64_t nodes, int64_t width,
+                        int64_t first_frame, const std::string& where, const std::string& field);
+
 // Writes a bsms dataset file atomically (temporary name, renamed by commit()); dataset_writer.cpp.
 class DatasetWriter {
  public:
@@ -73,6 +89,9 @@ class DatasetWriter {
   // Appends a trajectory under the next index (000000, 000001, ...). Rejects non-finite values
   // (never store NaN) and inconsistent shapes with an InputError.
   void add(const Trajectory& trajectory);
+  // Completes the temporary file (root attributes, close, fsync) without renaming it; commit()
+  // then only renames. Writers of several files that must appear together finish all first.
+  void finish();
   void commit();
 
  private:
@@ -128,11 +147,20 @@ class Dataset {
   std::string parameters(int64_t trajectory) const;
   // Solver wall time of the trajectory in seconds, or a negative value when not recorded.
   double solver_wall_s(int64_t trajectory) const;
-  // Frames [t0, t0 + count) of a field: [count, N, width] flattened.
+  // "FILE: trajectory T", the prefix of errors about one trajectory (FILE: its own file in a
+  // public folder).
+  std::string describe(int64_t trajectory) const;
+  // Frames [t0, t0 + count) of a field: [count, N, width] flattened. The first read of a
+  // trajectory checks every value of its dynamic fields (check_field_values), as mesh() checks
+  // every mesh: InputError names the file, trajectory, field, frame and node.
   std::vector<float> read(int64_t trajectory, const std::string& field, int64_t t0,
                           int64_t count = 1) const;
 
  private:
+  // Every value of every dynamic field of a trajectory, checked once (the first read of it).
+  void check_trajectory(int64_t trajectory) const;
+  std::vector<float> read_unchecked(int64_t trajectory, const std::string& field, int64_t t0,
+                                    int64_t count, int64_t nodes) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -30,6 +30,7 @@ struct DatasetWriter::Impl {
   H5File file;
   int dim;
   int64_t count = 0;
+  bool finished = false;
   Impl(const std::string& path, int d)
       : output(path), file(output.temp_path(), H5File::Mode::kTruncate), dim(d) {}
 };
@@ -96,9 +97,16 @@ void DatasetWriter::add(const Trajectory& t) {
   ++impl_->count;
 }
 
-void DatasetWriter::commit() {
+void DatasetWriter::finish() {
+  if (impl_->finished) return;
   impl_->file.set_attr("/", "num_trajectories", impl_->count);
   impl_->file.close();
+  impl_->output.sync();
+  impl_->finished = true;
+}
+
+void DatasetWriter::commit() {
+  finish();
   impl_->output.commit();
 }
 

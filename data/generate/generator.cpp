@@ -124,17 +124,26 @@ void claim_dir(const std::string& dir, const Json& wanted) {
   write_json_atomic(path, wanted);
 }
 
+// A finished trajectory, read back for the merge with every value checked like any dataset.
 Trajectory read_part(const std::string& path) {
-  const Dataset d(path);
-  if (d.num_trajectories() != 1) throw InputError(path + ": a part must hold one trajectory");
-  Trajectory t;
-  t.mesh = d.mesh(0);
-  t.seed = d.seed(0);
-  t.parameters = d.parameters(0);
-  t.solver_wall_s = d.solver_wall_s(0);
-  t.num_frames = d.num_frames(0);
-  for (const FieldInfo& f : d.fields()) t.fields[f.name] = d.read(0, f.name, 0, t.num_frames);
-  return t;
+  try {
+    const Dataset d(path);
+    if (d.num_trajectories() != 1) throw InputError(path + ": a part must hold one trajectory");
+    Trajectory t;
+    t.mesh = d.mesh(0);
+    t.seed = d.seed(0);
+    t.parameters = d.parameters(0);
+    t.solver_wall_s = d.solver_wall_s(0);
+    t.num_frames = d.num_frames(0);
+    for (const FieldInfo& f : d.fields()) t.fields[f.name] = d.read(0, f.name, 0, t.num_frames);
+    return t;
+  } catch (const InputError& e) {
+    // A part exists only once its trajectory was written whole, so a damaged one was changed
+    // afterwards; removing it makes the next call solve that trajectory again (deterministic).
+    throw InputError(std::string(e.what()) +
+                     "; no split file was written: delete this part and run generate again to "
+                     "solve its trajectory anew");
+  }
 }
 
 // Writes the split files of `out_dir` from the parts found in `dirs` (first folder wins).
@@ -161,13 +170,19 @@ SplitCounts write_splits(const Json& settings, const std::vector<std::string>& d
   const int dim = settings.at("dim").get<int>();
   const double frame_dt = settings.at("frame_dt").get<double>();
   const int64_t sizes[3] = {counts.train, counts.valid, counts.test};
+  // All or nothing: the three splits are written and synced under temporary names, and renamed
+  // into place only when all are complete. A failure (a damaged part, a full disk) removes the
+  // temporaries and leaves the folder as it was: the parts, for the next call to resume.
+  std::vector<std::unique_ptr<DatasetWriter>> writers;
   int64_t next = 0;
   for (int s = 0; s < 3; ++s) {
-    DatasetWriter writer((fs::path(out_dir) / (std::string(kSplitNames[s]) + ".h5")).string(),
-                         scene, dim, frame_dt);
-    for (int64_t k = 0; k < sizes[s]; ++k, ++next) writer.add(read_part(parts[next]));
-    writer.commit();
+    writers.push_back(std::make_unique<DatasetWriter>(
+        (fs::path(out_dir) / (std::string(kSplitNames[s]) + ".h5")).string(), scene, dim,
+        frame_dt));
+    for (int64_t k = 0; k < sizes[s]; ++k, ++next) writers.back()->add(read_part(parts[next]));
   }
+  for (auto& writer : writers) writer->finish();
+  for (auto& writer : writers) writer->commit();
   return counts;
 }
 

@@ -222,7 +222,23 @@ void info(const std::string& path) {
   if (fs::is_directory(path)) {
     if (fs::exists(fs::path(path) / "config.json")) return info_run(path);
     if (fs::exists(fs::path(path) / "meta.json")) return info_meshgraphnets(path);
-    // A bsms dataset folder (bsms generate): each split file.
+    // A bsms dataset folder (bsms generate): each split file. generate writes the three at once
+    // (or none), so a folder with some of them is not a whole dataset (an interrupted copy, an
+    // older bsms) and is refused rather than described.
+    if (fs::exists(fs::path(path) / "generate.json")) {
+      std::string missing;
+      int present = 0;
+      for (const char* split : {"train", "valid", "test"}) {
+        if (fs::is_regular_file(fs::path(path) / (std::string(split) + ".h5")))
+          ++present;
+        else
+          missing += (missing.empty() ? "" : ", ") + std::string(split) + ".h5";
+      }
+      if (present > 0 && present < 3)
+        throw bsms::InputError(path + ": incomplete dataset: " + missing +
+                               " missing (bsms generate writes all three splits or none; run "
+                               "it again with the same settings to finish it)");
+    }
     bool splits = false;
     for (const char* split : {"train", "valid", "test"}) {
       const fs::path file = fs::path(path) / (std::string(split) + ".h5");

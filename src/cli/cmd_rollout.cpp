@@ -2,6 +2,7 @@
 // [--steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize] [--threads T]
 #include "cli/command.hpp"
 #include "pipeline/rollout.hpp"
+#include "pipeline/rollout_outputs.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace {
@@ -41,7 +42,11 @@ BSMS_COMMAND(
           "format), one XDMF per trajectory for ParaView, and RUN/rollout/metrics.json:\n"
           "RMSE over the first 1, 50 and all steps per field, inference ms per step, the\n"
           "solver's ms per frame and the speed-up, training ms per step, peak memory.");
-      sub.callback([r] { bsms::rollout(*r); });
+      sub.callback([r] {
+        // A rollout refused midway (a damaged trajectory) leaves no output folder it created.
+        const bsms::cli::RemoveOnFailure cleanup(bsms::rollout_outputs::out_dir(*r).string());
+        bsms::rollout(*r);
+      });
     });
 
 }  // namespace

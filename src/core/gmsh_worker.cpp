@@ -29,6 +29,7 @@
 
 #include "core/error.hpp"
 #include "core/geo_scan.hpp"
+#include "core/hdf5_file.hpp"
 #include "core/gmsh_result.hpp"
 #include "core/mesh.hpp"
 #include "core/msh_reader.hpp"
@@ -73,6 +74,7 @@ void check_mesh_file(const std::string& path) {
   std::ifstream probe(path);
   if (!probe) throw InputError(path + ": mesh file is not readable");
   if (fs::file_size(path, ec) == 0) throw InputError(path + ": mesh file is empty");
+  register_input(path);
 }
 
 // The first bytes of a file (enough for its $MeshFormat line).

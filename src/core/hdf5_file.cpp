@@ -1,6 +1,7 @@
 #include "core/hdf5_file.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -8,6 +9,9 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -42,6 +46,109 @@ class Handle {
   hid_t id_;
 };
 
+std::string shape_string(const Shape& s) {
+  std::string out = "[";
+  for (size_t i = 0; i < s.size(); ++i) out += (i ? ", " : "") + std::to_string(s[i]);
+  return out + "]";
+}
+
+// Values a read of `dims` makes room for. A damaged dataspace can state any extent: the product
+// must not overflow, and no dataset expands to more than 4096 times its file (gzip of constant
+// data stays well under that) or past 64 MiB for a small file, so no damaged header makes bsms
+// allocate gigabytes.
+hsize_t checked_elements(const std::string& path, const Shape& dims, size_t value_size,
+                         const std::string& name) {
+  std::error_code ec;
+  const uintmax_t file_bytes = fs::file_size(path, ec);
+  const long double limit =
+      std::max<long double>(64.0L * 1024 * 1024, 4096.0L * (ec ? 0 : file_bytes));
+  long double bytes = static_cast<long double>(value_size);
+  hsize_t total = 1;
+  for (hsize_t d : dims) {
+    bytes *= static_cast<long double>(d);
+    total *= d;
+  }
+  if (bytes > limit)
+    throw InputError(path + ": dataset " + name + " states the shape " + shape_string(dims) +
+                     ", more than the file can hold (corrupt file?)");
+  return total;
+}
+
+// Before libhdf5 reads [offset, offset + count) of a dataset of a file that may be damaged: a
+// numeric type of at most 8 bytes, stored bytes no more than the file holds, and for each chunk
+// read a record that fits the file and, where no decompressing filter was applied (filter mask),
+// a stored size equal to the chunk's. libhdf5 1.10 trusts these records: it allocates what they
+// state (gigabytes), copies a whole chunk out of a shorter buffer, and checksums a chunk of under
+// 4 bytes over an underflowed length.
+void check_stored(hid_t set, const std::string& path, const std::string& name, const Shape& offset,
+                  const Shape& count) {
+  Handle type(H5Dget_type(set));
+  const H5T_class_t type_class = type.ok() ? H5Tget_class(type.get()) : H5T_NO_CLASS;
+  const size_t type_size = type.ok() ? H5Tget_size(type.get()) : 0;
+  if ((type_class != H5T_INTEGER && type_class != H5T_FLOAT) || type_size == 0 || type_size > 8)
+    throw InputError(path + ": dataset " + name + " is not of a numeric type (corrupt file?)");
+  std::error_code ec;
+  const uintmax_t file_bytes = fs::file_size(path, ec);
+  if (ec) return;
+  const std::string damaged =
+      path + ": dataset " + name + " has a damaged chunk record (corrupt file?)";
+  if (H5Dget_storage_size(set) > file_bytes) throw InputError(damaged);
+  Handle create(H5Dget_create_plist(set));
+  if (!create.ok() || H5Pget_layout(create.get()) != H5D_CHUNKED) return;
+  const int rank = static_cast<int>(offset.size());
+  Shape chunk(offset.size(), 0);
+  if (rank == 0 || H5Pget_chunk(create.get(), rank, chunk.data()) != rank)
+    throw InputError(damaged);
+  const int filters = H5Pget_nfilters(create.get());
+  if (filters < 0 || filters > 32) throw InputError(damaged);
+  unsigned checksum_bits = 0, other_bits = 0;
+  for (int k = 0; k < filters; ++k) {
+    unsigned flags = 0, config = 0;
+    size_t values = 0;
+    const H5Z_filter_t id = H5Pget_filter2(create.get(), static_cast<unsigned>(k), &flags, &values,
+                                           nullptr, 0, nullptr, &config);
+    (id == H5Z_FILTER_FLETCHER32 ? checksum_bits : other_bits) |= 1u << k;
+  }
+  long double chunk_bytes = static_cast<long double>(type_size);
+  Shape first(offset.size()), last(offset.size());
+  long double chunks = 1;
+  for (int i = 0; i < rank; ++i) {
+    if (chunk[i] == 0 || count[i] == 0) return;
+    chunk_bytes *= chunk[i];
+    first[i] = offset[i] / chunk[i];
+    last[i] = (offset[i] + count[i] - 1) / chunk[i];
+    chunks *= static_cast<long double>(last[i] - first[i] + 1);
+  }
+  if (chunks > (1 << 20)) return;  // no real file reads so many chunks at once: not checked
+  Shape index = first, at(offset.size());
+  for (;;) {
+    for (int i = 0; i < rank; ++i) at[i] = index[i] * chunk[i];
+    unsigned mask = 0;
+    haddr_t address = HADDR_UNDEF;
+    hsize_t size = 0;
+    if (H5Dget_chunk_info_by_coord(set, at.data(), &mask, &address, &size) < 0)
+      throw InputError(damaged);
+    if (address != HADDR_UNDEF) {
+      if (address > file_bytes || size > file_bytes - address) throw InputError(damaged);
+      // Fletcher-32 checksums the bytes before its own 4: a shorter chunk underflows that length.
+      if (size == 0 || ((checksum_bits & ~mask) && size <= 4)) throw InputError(damaged);
+      if ((other_bits & ~mask) == 0) {
+        const long double expected = chunk_bytes + ((checksum_bits & ~mask) ? 4 : 0);
+        if (static_cast<long double>(size) != expected) throw InputError(damaged);
+      }
+    }
+    int i = rank - 1;
+    for (; i >= 0; --i) {
+      if (index[i] < last[i]) {
+        ++index[i];
+        break;
+      }
+      index[i] = first[i];
+    }
+    if (i < 0) break;
+  }
+}
+
 std::vector<std::string> split_path(const std::string& path) {
   std::vector<std::string> parts;
   std::stringstream in(path);
@@ -68,11 +175,18 @@ H5File::H5File(const std::string& path, Mode mode) : path_(path) {
       if (id_ < 0) throw IoError(path + ": cannot open HDF5 file for writing");
       writable_ = true;
       break;
-    case Mode::kTruncate:
-      id_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    case Mode::kTruncate: {
+      // The 1.8 file format and up: superblock, object headers, heaps and B-trees carry
+      // checksums, so libhdf5 refuses damaged metadata instead of parsing it (libhdf5 1.10 reads
+      // out of bounds on some damaged version-1 object headers; fuzz/fuzz_dataset_bytes.cpp).
+      Handle access(H5Pcreate(H5P_FILE_ACCESS));
+      if (!access.ok() || H5Pset_libver_bounds(access.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0)
+        throw IoError(path + ": cannot set the HDF5 file format");
+      id_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get());
       if (id_ < 0) throw IoError(path + ": cannot create HDF5 file");
       writable_ = true;
       break;
+    }
   }
 }
 
@@ -197,13 +311,17 @@ void H5File::write(const std::string& name, const T* data, const Shape& shape, h
   if (H5Lexists(id_, name.c_str(), H5P_DEFAULT) > 0) remove(name);
   Handle space(H5Screate_simple(static_cast<int>(shape.size()), shape.data(), nullptr));
   Handle plist(H5Pcreate(H5P_DATASET_CREATE));
+  if (!space.ok() || !plist.ok())
+    throw IoError(path_ + ": cannot describe dataset " + name + " of shape " + shape_string(shape));
   hsize_t total = 1;
   for (hsize_t s : shape) total *= s;
   if (chunk_rows > 0 && !shape.empty() && total > 0) {
     Shape chunk = shape;
     chunk[0] = std::min<hsize_t>(chunk_rows, std::max<hsize_t>(shape[0], 1));
-    H5Pset_chunk(plist.get(), static_cast<int>(chunk.size()), chunk.data());
-    H5Pset_deflate(plist.get(), 1);
+    // Fletcher-32 per chunk: a damaged chunk fails its read instead of inflating to garbage.
+    if (H5Pset_chunk(plist.get(), static_cast<int>(chunk.size()), chunk.data()) < 0 ||
+        H5Pset_deflate(plist.get(), 1) < 0 || H5Pset_fletcher32(plist.get()) < 0)
+      throw IoError(path_ + ": cannot set the chunking of dataset " + name);
   }
   Handle set(H5Dcreate2(id_, name.c_str(), h5_native_type<T>(), space.get(), H5P_DEFAULT,
                         plist.get(), H5P_DEFAULT));
@@ -233,7 +351,6 @@ void H5File::write_virtual(const std::string& name, const std::string& source_fi
   Handle mapped(H5Scopy(space.get()));
   const Shape zero(extent.size(), 0);
   const Shape block = width > 0 ? Shape{rows, source_width} : Shape{rows};
-  H5Sselect_hyperslab(mapped.get(), H5S_SELECT_SET, zero.data(), nullptr, block.data(), nullptr);
   Handle source(
       H5Screate_simple(static_cast<int>(source_shape.size()), source_shape.data(), nullptr));
   Shape start(source_shape.size(), 0), count = source_shape;
@@ -241,10 +358,14 @@ void H5File::write_virtual(const std::string& name, const std::string& source_fi
     start[0] = static_cast<hsize_t>(frame);
     count[0] = 1;
   }
-  H5Sselect_hyperslab(source.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr);
   Handle plist(H5Pcreate(H5P_DATASET_CREATE));
   const float fill = 0.0f;
-  if (H5Pset_fill_value(plist.get(), H5T_NATIVE_FLOAT, &fill) < 0 ||
+  if (!space.ok() || !mapped.ok() || !source.ok() || !plist.ok() ||
+      H5Sselect_hyperslab(mapped.get(), H5S_SELECT_SET, zero.data(), nullptr, block.data(),
+                          nullptr) < 0 ||
+      H5Sselect_hyperslab(source.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
+                          nullptr) < 0 ||
+      H5Pset_fill_value(plist.get(), H5T_NATIVE_FLOAT, &fill) < 0 ||
       H5Pset_virtual(plist.get(), mapped.get(), source_file.c_str(), source_dataset.c_str(),
                      source.get()) < 0)
     throw IoError(path_ + ": cannot map virtual dataset " + name);
@@ -258,10 +379,12 @@ Shape H5File::shape(const std::string& name) const {
   Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
   if (!set.ok()) throw InputError(path_ + ": " + name + " is not a dataset");
   Handle space(H5Dget_space(set.get()));
-  const int rank = H5Sget_simple_extent_ndims(space.get());
-  if (rank < 0) throw InputError(path_ + ": cannot read the shape of " + name);
+  const int rank = space.ok() ? H5Sget_simple_extent_ndims(space.get()) : -1;
+  if (rank < 0 || rank > H5S_MAX_RANK)
+    throw InputError(path_ + ": cannot read the shape of " + name + " (corrupt file?)");
   Shape dims(static_cast<size_t>(rank));
-  H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr);
+  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) != rank)
+    throw InputError(path_ + ": cannot read the shape of " + name + " (corrupt file?)");
   return dims;
 }
 
@@ -375,12 +498,13 @@ std::vector<T> H5File::read(const std::string& name, Shape* shape_out, const Sha
       throw InputError(path_ + ": dataset " + name + " has shape " + shape_string(dims) +
                        ", expected " + shape_string(expect) + " (0 = any)");
   }
-  hsize_t total = 1;
-  for (hsize_t d : dims) total *= d;
+  const hsize_t total = checked_elements(path_, dims, sizeof(T), name);
   std::vector<T> out(total);
   if (total > 0) {
     Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
-    if (H5Dread(set.get(), h5_native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
+    if (set.ok() && !writable_) check_stored(set.get(), path_, name, Shape(dims.size(), 0), dims);
+    if (!set.ok() ||
+        H5Dread(set.get(), h5_native_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()) < 0)
       throw InputError(path_ + ": cannot read dataset " + name + " (corrupt, or wrong type)");
   }
   if (shape_out) *shape_out = dims;
@@ -393,21 +517,21 @@ std::vector<T> H5File::read_slab(const std::string& name, const Shape& offset,
   const Shape dims = shape(name);
   if (offset.size() != dims.size() || count.size() != dims.size())
     throw InputError(path_ + ": slab of " + name + " has the wrong rank");
-  hsize_t total = 1;
-  for (size_t i = 0; i < dims.size(); ++i) {
-    if (offset[i] + count[i] > dims[i])
+  for (size_t i = 0; i < dims.size(); ++i)
+    if (offset[i] > dims[i] || count[i] > dims[i] - offset[i])
       throw InputError(path_ + ": slab outside dataset " + name + " of shape " +
                        shape_string(dims));
-    total *= count[i];
-  }
+  const hsize_t total = checked_elements(path_, count, sizeof(T), name);
   std::vector<T> out(total);
   if (total == 0) return out;
   Handle set(H5Dopen2(id_, name.c_str(), H5P_DEFAULT));
-  Handle file_space(H5Dget_space(set.get()));
-  H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, offset.data(), nullptr, count.data(),
-                      nullptr);
+  if (set.ok() && !writable_) check_stored(set.get(), path_, name, offset, count);
+  Handle file_space(set.ok() ? H5Dget_space(set.get()) : -1);
   Handle mem_space(H5Screate_simple(static_cast<int>(count.size()), count.data(), nullptr));
-  if (H5Dread(set.get(), h5_native_type<T>(), mem_space.get(), file_space.get(), H5P_DEFAULT,
+  if (!file_space.ok() || !mem_space.ok() ||
+      H5Sselect_hyperslab(file_space.get(), H5S_SELECT_SET, offset.data(), nullptr, count.data(),
+                          nullptr) < 0 ||
+      H5Dread(set.get(), h5_native_type<T>(), mem_space.get(), file_space.get(), H5P_DEFAULT,
               out.data()) < 0)
     throw InputError(path_ + ": cannot read a slab of " + name);
   return out;
@@ -430,8 +554,11 @@ void write_attr(hid_t file, const std::string& path, const std::string& object,
                 const std::string& name, hid_t type, const void* value) {
   Handle obj(H5Oopen(file, object.c_str(), H5P_DEFAULT));
   if (!obj.ok()) throw IoError(path + ": missing object " + object);
-  if (H5Aexists(obj.get(), name.c_str()) > 0) H5Adelete(obj.get(), name.c_str());
+  if (H5Aexists(obj.get(), name.c_str()) > 0 && H5Adelete(obj.get(), name.c_str()) < 0)
+    throw IoError(path + ": cannot replace attribute " + object + "@" + name);
   Handle space(H5Screate(H5S_SCALAR));
+  if (type < 0 || !space.ok())
+    throw IoError(path + ": cannot describe attribute " + object + "@" + name);
   Handle attr(H5Acreate2(obj.get(), name.c_str(), type, space.get(), H5P_DEFAULT, H5P_DEFAULT));
   if (!attr.ok() || H5Awrite(attr.get(), type, value) < 0)
     throw IoError(path + ": cannot write attribute " + object + "@" + name);
@@ -441,9 +568,9 @@ void write_attr(hid_t file, const std::string& path, const std::string& object,
 void H5File::set_attr(const std::string& object, const std::string& name,
                       const std::string& value) {
   Handle type(H5Tcopy(H5T_C_S1));
-  H5Tset_size(type.get(), std::max<size_t>(value.size(), 1));
-  H5Tset_strpad(type.get(), H5T_STR_NULLTERM);
-  H5Tset_cset(type.get(), H5T_CSET_UTF8);
+  if (!type.ok() || H5Tset_size(type.get(), std::max<size_t>(value.size(), 1)) < 0 ||
+      H5Tset_strpad(type.get(), H5T_STR_NULLTERM) < 0 || H5Tset_cset(type.get(), H5T_CSET_UTF8) < 0)
+    throw IoError(path_ + ": cannot make the string type of attribute " + object + "@" + name);
   std::string padded = value;
   if (padded.empty()) padded.push_back('\0');
   write_attr(id_, path_, object, name, type.get(), padded.data());
@@ -486,22 +613,27 @@ hid_t open_attr(hid_t file, const std::string& path, const std::string& object,
 std::string H5File::attr_string(const std::string& object, const std::string& name) const {
   Handle attr(open_attr(id_, path_, object, name));
   Handle type(H5Aget_type(attr.get()));
+  if (!type.ok())
+    throw InputError(path_ + ": cannot read the type of attribute " + object + "@" + name);
   if (H5Tget_class(type.get()) != H5T_STRING)
     throw InputError(path_ + ": attribute " + object + "@" + name + " is not a string");
-  if (H5Tis_variable_str(type.get()) > 0) {
+  const htri_t variable = H5Tis_variable_str(type.get());
+  if (variable < 0)
+    throw InputError(path_ + ": cannot read the type of attribute " + object + "@" + name);
+  if (variable > 0) {
     char* buffer = nullptr;
     Handle mem(H5Tcopy(H5T_C_S1));
-    H5Tset_size(mem.get(), H5T_VARIABLE);
-    if (H5Aread(attr.get(), mem.get(), &buffer) < 0 || buffer == nullptr)
+    if (!mem.ok() || H5Tset_size(mem.get(), H5T_VARIABLE) < 0 ||
+        H5Aread(attr.get(), mem.get(), &buffer) < 0 || buffer == nullptr)
       throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
     std::string out(buffer);
     H5free_memory(buffer);
     return out;
   }
-  // A fixed-length string holds exactly its stored bytes: a damaged type size is not a length
-  // to allocate.
+  // A fixed-length string holds exactly its stored bytes, and no bsms string attribute (the scene
+  // JSON included) comes near 256 MiB: a damaged type size is not a length to allocate.
   const size_t size = H5Tget_size(type.get());
-  if (size == 0 || H5Aget_storage_size(attr.get()) < size)
+  if (size == 0 || size > (size_t{256} << 20) || H5Aget_storage_size(attr.get()) < size)
     throw InputError(path_ + ": attribute " + object + "@" + name + " is damaged");
   std::string out(size, '\0');
   if (H5Aread(attr.get(), type.get(), out.data()) < 0)
@@ -513,7 +645,7 @@ std::string H5File::attr_string(const std::string& object, const std::string& na
 int64_t H5File::attr_int(const std::string& object, const std::string& name) const {
   Handle attr(open_attr(id_, path_, object, name));
   Handle type(H5Aget_type(attr.get()));
-  if (H5Tget_class(type.get()) != H5T_INTEGER)
+  if (!type.ok() || H5Tget_class(type.get()) != H5T_INTEGER)
     throw InputError(path_ + ": attribute " + object + "@" + name + " is not an integer");
   int64_t value = 0;
   if (H5Aread(attr.get(), H5T_NATIVE_INT64, &value) < 0)
@@ -523,14 +655,57 @@ int64_t H5File::attr_int(const std::string& object, const std::string& name) con
 
 double H5File::attr_double(const std::string& object, const std::string& name) const {
   Handle attr(open_attr(id_, path_, object, name));
+  Handle type(H5Aget_type(attr.get()));
+  const H5T_class_t type_class = type.ok() ? H5Tget_class(type.get()) : H5T_NO_CLASS;
+  if (type_class != H5T_FLOAT && type_class != H5T_INTEGER)
+    throw InputError(path_ + ": attribute " + object + "@" + name + " is not a number");
   double value = 0;
   if (H5Aread(attr.get(), H5T_NATIVE_DOUBLE, &value) < 0)
     throw InputError(path_ + ": cannot read attribute " + object + "@" + name);
   return value;
 }
 
+namespace {
+
+struct InputRegistry {
+  std::mutex mutex;
+  std::map<std::pair<dev_t, ino_t>, std::string> names;
+  // Files this process wrote: reading one back (a rollout's XDMF views) does not make it an
+  // input, so a later output of the same process may replace it.
+  std::set<std::pair<dev_t, ino_t>> outputs;
+};
+
+InputRegistry& input_registry() {
+  static InputRegistry registry;
+  return registry;
+}
+
+}  // namespace
+
+void register_input(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return;
+  auto& r = input_registry();
+  const std::lock_guard<std::mutex> lock(r.mutex);
+  if (r.outputs.count({st.st_dev, st.st_ino})) return;
+  r.names.emplace(std::make_pair(st.st_dev, st.st_ino), path);
+}
+
+void refuse_replacing_input(const std::string& output) {
+  struct stat st {};
+  if (::stat(output.c_str(), &st) != 0) return;
+  auto& r = input_registry();
+  const std::lock_guard<std::mutex> lock(r.mutex);
+  const auto it = r.names.find({st.st_dev, st.st_ino});
+  if (it == r.names.end()) return;
+  throw InputError(output + ": is an input of this command" +
+                   (it->second == output ? std::string() : " (" + it->second + ")") +
+                   "; writing it would destroy it: choose another output path");
+}
+
 AtomicOutput::AtomicOutput(std::string final_path) : final_(std::move(final_path)) {
   static std::atomic<int> counter{0};
+  refuse_replacing_input(final_);
   ensure_parent_dir(final_);
   temp_ = final_ + ".tmp." + std::to_string(getpid()) + "." + std::to_string(counter++);
 }
@@ -539,15 +714,31 @@ AtomicOutput::~AtomicOutput() {
   if (!committed_) std::remove(temp_.c_str());
 }
 
-void AtomicOutput::commit() {
+void AtomicOutput::sync() {
+  if (synced_) return;
   const int fd = ::open(temp_.c_str(), O_RDONLY);
   if (fd < 0) throw IoError(temp_ + ": temporary output vanished before commit");
-  const bool synced = ::fsync(fd) == 0;
+  const bool ok = ::fsync(fd) == 0;
   ::close(fd);
-  if (!synced) throw IoError(temp_ + ": fsync failed (disk full?)");
+  if (!ok) throw IoError(temp_ + ": fsync failed (disk full?)");
+  synced_ = true;
+}
+
+void AtomicOutput::commit() {
+  sync();
+  // An input may have been read after this output was started.
+  refuse_replacing_input(final_);
   if (std::rename(temp_.c_str(), final_.c_str()) != 0)
     throw IoError(final_ + ": cannot rename the finished temporary file into place");
   committed_ = true;
+  struct stat st {};
+  if (::stat(final_.c_str(), &st) == 0) {
+    auto& r = input_registry();
+    const std::lock_guard<std::mutex> lock(r.mutex);
+    // An input of that inode was deleted (inodes are reused): the name is now this output.
+    r.names.erase({st.st_dev, st.st_ino});
+    r.outputs.insert({st.st_dev, st.st_ino});
+  }
 }
 
 void ensure_parent_dir(const std::string& path) {

@@ -138,8 +138,17 @@ class H5File {
   bool writable_ = false;
 };
 
+// Inputs of this process: the readers of user data (datasets, meshes) record each file they open,
+// and AtomicOutput refuses to replace one (InputError, exit 2), so no command's output, whatever
+// its path (the same name, a symlink, a hard link), destroys what the command reads. Files read
+// to be resumed or refreshed (checkpoints, run configs, graph caches) are not recorded.
+void register_input(const std::string& path);
+// InputError naming `output` when it is (the same inode as) a registered input.
+void refuse_replacing_input(const std::string& output);
+
 // A file written under a temporary name in the same folder and renamed into place by commit();
-// destroyed without commit, the temporary is removed. A reader never sees a partial file.
+// destroyed without commit, the temporary is removed. A reader never sees a partial file. Refuses
+// (InputError) a final path that is an input of this process (register_input).
 class AtomicOutput {
  public:
   explicit AtomicOutput(std::string final_path);
@@ -148,12 +157,14 @@ class AtomicOutput {
   AtomicOutput& operator=(const AtomicOutput&) = delete;
   const std::string& temp_path() const { return temp_; }
   const std::string& final_path() const { return final_; }
+  void sync();    // fsync of the temporary (commit does it if not done); throws IoError
   void commit();  // fsync + rename; throws IoError
 
  private:
   std::string final_;
   std::string temp_;
   bool committed_ = false;
+  bool synced_ = false;
 };
 
 // Throws IoError naming `path` unless its parent folder exists and is writable (creates it).

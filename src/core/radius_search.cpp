@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
+#include <string>
+
+#include "core/error.hpp"
 
 namespace bsms {
 
@@ -16,26 +20,45 @@ EdgeList radius_pairs(const RowMatrixXd& points, double radius, const CsrGraph* 
     throw std::invalid_argument("radius_pairs: exclusion graph has another node count");
   EdgeList out;
   if (n == 0) return out;
-  // Cells of side `radius`: neighbours lie in the 3^dim surrounding cells. Nodes are sorted by a
-  // cell key so each cell is a contiguous run, found in a table of run starts when the grid has
+  // Cells of side >= `radius`: neighbours lie in the 3^dim surrounding cells. Nodes are sorted by
+  // a cell key so each cell is a contiguous run, found in a table of run starts when the grid has
   // few cells for its nodes, else by binary search.
+  for (int64_t i = 0; i < n; ++i)
+    for (int c = 0; c < dim; ++c)
+      if (!std::isfinite(points(i, c)))
+        throw InputError("radius search: node " + std::to_string(i) + " has the coordinate " +
+                         std::to_string(points(i, c)) + " on axis " + std::to_string(c) +
+                         " (positions must be finite)");
   Eigen::RowVectorXd lo = points.colwise().minCoeff();
+  Eigen::RowVectorXd hi = points.colwise().maxCoeff();
+  // Far-apart points (or a tiny radius) would need more cells per axis than an int64 key holds:
+  // such an axis gets wider cells (side >= radius keeps the 3^dim neighbourhood exact), so every
+  // cell index below is a small non-negative integer and the casts are defined.
+  const double max_cells = dim == 1 ? 0x1p40 : dim == 2 ? 0x1p30 : 0x1p20;
+  double side[3] = {radius, radius, radius};
   std::vector<int64_t> cell(n * 3, 0);
   int64_t extent[3] = {1, 1, 1};
   for (int c = 0; c < dim; ++c) {
-    extent[c] = static_cast<int64_t>((points.col(c).maxCoeff() - lo(c)) / radius) + 1;
+    // hi/2 - lo/2 cannot overflow where hi - lo could (coordinates near the double maximum).
+    const double half_range = hi(c) / 2 - lo(c) / 2;
+    side[c] = std::max(radius, 2.0 * (half_range / max_cells));
+    if (!std::isfinite(side[c])) side[c] = std::numeric_limits<double>::max();
+    extent[c] = static_cast<int64_t>(std::min(max_cells, std::floor(half_range / side[c] * 2))) + 1;
   }
+  auto cell_of = [&](double x, int c) {
+    const double k = std::floor((x / 2 - lo(c) / 2) / side[c] * 2);
+    return static_cast<int64_t>(std::min(std::max(k, 0.0), static_cast<double>(extent[c] - 1)));
+  };
   auto key_of = [&](const int64_t* ijk) {
     return (ijk[2] * extent[1] + ijk[1]) * extent[0] + ijk[0];
   };
   std::vector<std::pair<int64_t, int64_t>> keyed(n);
   for (int64_t i = 0; i < n; ++i) {
-    for (int c = 0; c < dim; ++c)
-      cell[3 * i + c] = static_cast<int64_t>((points(i, c) - lo(c)) / radius);
+    for (int c = 0; c < dim; ++c) cell[3 * i + c] = cell_of(points(i, c), c);
     keyed[i] = {key_of(&cell[3 * i]), i};
   }
   std::sort(keyed.begin(), keyed.end());
-  // extent[c] <= range / radius + 1, so the product stays finite; compare in double first.
+  // extent[c] <= max_cells + 1, so the product fits an int64; compare in double first.
   const double cells_d = static_cast<double>(extent[0]) * static_cast<double>(extent[1]) *
                          static_cast<double>(extent[2]);
   const bool table = cells_d <= 8.0 * static_cast<double>(n) + 4096.0;

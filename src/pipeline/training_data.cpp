@@ -180,6 +180,11 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
     std::set<int32_t> bodies(m.body_id.begin(), m.body_id.end());
     several_bodies = several_bodies || bodies.size() > 1;
   }
+  if (config.features.num_node_types > 0 && config.features.num_node_types <= max_type)
+    throw InputError("features.num_node_types: " + std::to_string(config.features.num_node_types) +
+                     " one-hot classes, and " + train_data.location() + " has node types up to " +
+                     std::to_string(max_type) + ": set it to at least " +
+                     std::to_string(max_type + 1) + ", or 0 (auto)");
   // Public data: MeshGraphNets' one-hot of width 9 (NORMAL 0 ... WALL_BOUNDARY 6).
   const int num_node_types = config.features.num_node_types > 0 ? config.features.num_node_types
                              : public_layout                    ? std::max(max_type + 1, 9)
@@ -243,7 +248,17 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
   } else {
     s.contact_radius = config.features.contact_radius;
   }
-  if (config.features.strain == "auto") s.strain_scale = rms_strain(train_data, probe, config.seed);
+  if (config.features.strain == "auto") {
+    // The strain channel compares the lengths of an edge in mesh_pos and world_pos, in one
+    // space: cloth (2-D mesh_pos, 3-D world_pos) has none to offer it.
+    if (s.mesh_dim != s.dim)
+      throw InputError(
+          "features.strain: \"auto\" (the default) adds the strain channel, which "
+          "needs mesh_pos and world_pos of one dimension; " +
+          train_data.location() + " has " + std::to_string(s.mesh_dim) + "-D mesh_pos and " +
+          std::to_string(s.dim) + "-D world_pos: set features.strain to \"off\"");
+    s.strain_scale = rms_strain(train_data, probe, config.seed);
+  }
   // Walls: nodes see them from 4 mesh edges away (~2-4 frames of travel at the demo's speeds).
   if (config.features.walls == "auto") resolve_walls(s, train_data.scene(), 4.0 * s.position_scale);
   if (config.features.momentum != "off") {

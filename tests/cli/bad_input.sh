@@ -61,6 +61,51 @@ EOF
   sed 's/nan.msh/geo_loop.geo/' scene_nan_mesh.json >scene_geo_loop.json
 }
 
+# --- datasets: damaged values and meshes in otherwise whole datasets, an interrupted generate
+# with a damaged part, outputs that would replace inputs. Runs in the setup's folder, after the
+# dataset `data` exists. Values are set with the dataset_tamper test helper (BSMS_DATASET_TAMPER,
+# set by ctest; else beside the executable's build).
+setup_datasets() {
+  local tamper=${BSMS_DATASET_TAMPER:-$(dirname "$bsms")/tests/cli/dataset_tamper} n d s
+  if [ ! -x "$tamper" ]; then
+    echo "setup_datasets: $tamper not built (ninja dataset_tamper): its cases will fail" >&2
+    return 0
+  fi
+  for d in data_inf_vel data_nan_pos data_huge_pos data_bad_mesh data_bad_type; do
+    mkdir "$d" && cp data/*.h5 data/generate.json "$d"/
+  done
+  # velocity [T, N, 2] of frame 2, node 7, component 1; world_pos NaN at frame 3, node 5.
+  for s in train test; do
+    # Nodes of the split's one trajectory (`bsms info` prints the mean over trajectories).
+    n=$("$bsms" info data/$s.h5 | sed -n 's/.* frames, \([0-9]*\)\.0 nodes.*/\1/p')
+    "$tamper" data_inf_vel/$s.h5 /trajectories/000000/velocity $((2 * n * 2 + 7 * 2 + 1)) inf
+    "$tamper" data_huge_pos/$s.h5 /trajectories/000000/world_pos $((4 * n * 2 + 1)) 3e38
+  done
+  n=$("$bsms" info data/train.h5 | sed -n 's/.* frames, \([0-9]*\)\.0 nodes.*/\1/p')
+  "$tamper" data_nan_pos/train.h5 /trajectories/000000/world_pos $((3 * n * 2 + 5 * 2)) nan
+  # Cell 0 repeats node 0; node 4 has a node type outside bsms's 0..3.
+  "$tamper" data_bad_mesh/train.h5 /trajectories/000000/cells 0 0
+  "$tamper" data_bad_mesh/train.h5 /trajectories/000000/cells 1 0
+  "$tamper" data_bad_type/test.h5 /trajectories/000000/node_type 4 7
+  # A dataset in the HDF5 format of older bsms versions (no checksums), with the signature of the
+  # local heap holding the link name "000000" of /trajectories damaged: the name lookup returns
+  # -1 (formerly used as a length: a crash, exit 1).
+  "$tamper" --legacy-copy data/test.h5 heap_flip.h5
+  local name_at heap_at
+  name_at=$(grep -obUa 000000 heap_flip.h5 | head -1 | cut -d: -f1)
+  heap_at=$(grep -obUa HEAP heap_flip.h5 | awk -F: -v n="$name_at" '$1 < n { o = $1 } END { print o }')
+  flip heap_flip.h5 "$heap_at"
+  # A generate folder with two of its three splits (a partial copy, an older bsms).
+  mkdir data_no_test && cp data/train.h5 data/valid.h5 data/generate.json data_no_test/
+  # Two shard runs into one folder: all three parts, not merged; the test trajectory's part is
+  # then cut short, as a full disk or a bad copy would leave it.
+  for k in 1 2; do
+    "$bsms" generate "$src/configs/families/disks2d.json" --out gen_damaged --trajectories 3 \
+      --split 1:1:1 --set frames=6 --set 'sample.count=[2,2]' --threads 1 --shard $k/2 >/dev/null 2>&1
+  done
+  truncate_half gen_damaged/.parts/traj_000002.h5
+}
+
 setup() {
   set -e
   local in=$work/in tmp=$work/in.tmp
@@ -94,6 +139,7 @@ setup() {
   printf 'not an HDF5 file\n' >data_garbage/test.h5
   cp data/test.h5 trunc_test.h5 && truncate_half trunc_test.h5
   printf 'plain text\n' >a_file  # a file where a folder is expected: unwritable paths under it
+  setup_datasets
 
   # Damaged runs (each case that could write into its run gets its own copy).
   for r in run_ckpt_trunc run_ckpt_trunc2 run_ckpt_garbage run_ckpt_garbage2 run_ckpt_flip \

@@ -4,7 +4,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 #include <tuple>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -75,6 +78,40 @@ TEST(Hdf5File, OpeningBadFilesIsAnInputError) {
         f.read<double>("/x");
       },
       InputError);
+}
+
+// A file in the format without checksums (older bsms, other tools) whose local heap holding a
+// link name is damaged: the name call returns -1, which once sized a string (a crash, exit 1).
+TEST(Hdf5File, DamagedLinkNameHeapIsAnInputError) {
+  const std::string path = temp_path("legacy_heap.h5");
+  {
+    const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    H5Gclose(H5Gcreate2(f, "/trajectories", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    H5Gclose(H5Gcreate2(f, "/trajectories/000000", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    H5Fclose(f);
+  }
+  EXPECT_EQ(H5File(path, H5File::Mode::kRead).list("/trajectories"),
+            std::vector<std::string>{"000000"});
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const size_t name = bytes.find("000000");
+  const size_t heap = bytes.rfind("HEAP", name);
+  ASSERT_NE(name, std::string::npos);
+  ASSERT_NE(heap, std::string::npos);
+  bytes[heap] ^= 1;
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  try {
+    H5File(path, H5File::Mode::kRead).list("/trajectories");
+    FAIL() << "a damaged name heap was listed";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/trajectories"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Hdf5File, AtomicOutputLeavesNothingUnlessCommitted) {

@@ -2,7 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <random>
+#include <string>
+
+#include "core/error.hpp"
 
 namespace bsms {
 namespace {
@@ -65,6 +70,47 @@ TEST(RadiusSearch, FilterAndSparseGridsMatchBruteForce) {
             << "dim " << dim << " trial " << trial << " filtered " << filtered;
       }
     }
+  }
+}
+
+// Coordinates far beyond any real scene (3e38, the float maximum's neighbourhood, +-1e300) or a
+// radius tiny against the spread would make more cells per axis than an int64 key holds: the
+// search widens the cells instead and still finds exactly the close pairs; a non-finite
+// coordinate is refused by name.
+TEST(RadiusSearch, ExtremeCoordinatesMatchBruteForceAndNonFiniteIsRefused) {
+  for (int dim = 1; dim <= 3; ++dim) {
+    for (double far : {3e38, 1e300, 1.7e308}) {
+      const int64_t n = 12;
+      RowMatrixXd x(n, dim);
+      for (int64_t i = 0; i < n; ++i)
+        for (int c = 0; c < dim; ++c)
+          x(i, c) = (i % 3 == 0 ? far : i % 3 == 1 ? -far : 0.0) + 0.01 * (i / 3) + 0.001 * c;
+      const double r = 0.015;
+      const EdgeList got = radius_pairs(x, r);
+      std::vector<int64_t> expected;
+      for (int64_t i = 0; i < n; ++i)
+        for (int64_t j = 0; j < n; ++j) {
+          if (i == j) continue;
+          double d2 = 0;
+          for (int c = 0; c < dim; ++c) {
+            const double d = x(i, c) - x(j, c);
+            d2 += d * d;
+          }
+          if (d2 < r * r) expected.insert(expected.end(), {i, j});
+        }
+      ASSERT_EQ(got.data, expected) << "dim " << dim << " far " << far;
+    }
+    RowMatrixXd bad = RowMatrixXd::Zero(4, dim);
+    bad(2, dim - 1) = std::numeric_limits<double>::infinity();
+    try {
+      radius_pairs(bad, 0.1);
+      FAIL() << "an infinite coordinate was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("node 2"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("inf"), std::string::npos) << e.what();
+    }
+    bad(2, dim - 1) = std::nan("");
+    EXPECT_THROW(radius_pairs(bad, 0.1), InputError);
   }
 }
 

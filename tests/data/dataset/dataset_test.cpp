@@ -5,6 +5,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <sstream>
 
 #include "core/error.hpp"
@@ -93,6 +95,130 @@ TEST(Dataset, WriterRejectsNaNAndLeavesNoFile) {
   }
   EXPECT_FALSE(fs::exists(path));
   EXPECT_TRUE(fs::is_empty(dir));
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no InputError)";
+}
+
+// Sets one value of a dataset in a written file, as damage (or a bad converter) would.
+template <class T>
+void set_value(const std::string& path, const std::string& name, size_t index, T value) {
+  H5File f(path, H5File::Mode::kReadWrite);
+  Shape shape;
+  std::vector<T> values = f.read<T>(name, &shape);
+  values[index] = value;
+  f.write(name, values, shape, shape.size() >= 2 ? 1 : 0);
+  f.close();
+}
+
+// Every value read is checked where it is read: non-finite or beyond the documented bound, named
+// by file, trajectory, field, frame, node and component, in any field of the trajectory (the first
+// read of a trajectory checks them all) and in the mesh.
+TEST(Dataset, ReadChecksValuesAndNamesFileTrajectoryFieldFrameNode) {
+  const fs::path dir = temp_dir("values");
+  const std::string path = (dir / "train.h5").string();
+  auto write = [&] {
+    // A scene: simulated data, whose node types are bsms's 0..3.
+    DatasetWriter w(path, R"({"name": "disks2d"})", 2, 0.01);
+    w.add(make_trajectory(1, 4));
+    w.add(make_trajectory(2, 4));
+    w.commit();
+  };
+  // velocity [T=4, N=4, 2] of trajectory 1: frame 2, node 3, component 1.
+  write();
+  set_value<float>(path, "/trajectories/000001/velocity", 2 * 8 + 3 * 2 + 1,
+                   std::numeric_limits<float>::infinity());
+  {
+    const Dataset d(path);
+    EXPECT_EQ(d.read(0, "world_pos", 0).size(), 8u);  // trajectory 0 is intact
+    const std::string e = error_of([&] { d.read(1, "world_pos", 0); });
+    EXPECT_NE(e.find("train.h5: trajectory 1, field 'velocity' frame 2 node 3 component 1: inf"),
+              std::string::npos)
+        << e;
+  }
+  write();
+  set_value<float>(path, "/trajectories/000000/world_pos", 5, 3e38f);
+  EXPECT_NE(error_of([&] { Dataset(path).read(0, "world_pos", 3); })
+                .find("field 'world_pos' frame 0 node 2 component 1: 3e+38, expected a finite "
+                      "value within ±1e+06"),
+            std::string::npos);
+  write();
+  set_value<float>(path, "/trajectories/000000/stress", 6, std::nanf(""));
+  EXPECT_NE(error_of([&] {
+              Dataset(path).read(0, "world_pos", 0);
+            }).find("field 'stress' frame 1 node 2: nan"),
+            std::string::npos);
+  // Stress may be large (Pa), positions may not.
+  write();
+  set_value<float>(path, "/trajectories/000000/stress", 6, 1e12f);
+  EXPECT_NO_THROW(Dataset(path).read(0, "world_pos", 0));
+  // Mesh: a position beyond the bound, a node type outside bsms's set, a cell repeating a node.
+  write();
+  set_value<float>(path, "/trajectories/000001/mesh_pos", 3, -2e6f);
+  EXPECT_NE(error_of([&] {
+              Dataset(path).mesh(1);
+            }).find("train.h5: trajectory 1, field 'mesh_pos' node 1 component 1: -2e+06"),
+            std::string::npos);
+  write();
+  set_value<int32_t>(path, "/trajectories/000000/node_type", 2, 9);
+  EXPECT_NE(error_of([&] {
+              Dataset(path).mesh(0);
+            }).find("train.h5: trajectory 0: node_type of node 2 is 9, expected 0..3"),
+            std::string::npos);
+  // Public data converted to a bsms file (no scene) keeps its codes: 0..63.
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(1, 4));
+    w.commit();
+  }
+  set_value<int32_t>(path, "/trajectories/000000/node_type", 2, 9);
+  EXPECT_EQ(Dataset(path).mesh(0).node_type[2], 9);
+  set_value<int32_t>(path, "/trajectories/000000/node_type", 2, 64);
+  EXPECT_NE(error_of([&] { Dataset(path).mesh(0); }).find("is 64, expected 0..63"),
+            std::string::npos);
+  write();
+  set_value<int32_t>(path, "/trajectories/000001/cells", 4, 0);
+  EXPECT_NE(error_of([&] {
+              Dataset(path).mesh(1);
+            }).find("train.h5: trajectory 1: cells: cell 1 repeats node 0"),
+            std::string::npos);
+}
+
+// No output of a process replaces a file it read as input, whatever the path spelling (a
+// symlink); its own outputs, read back, may be replaced.
+TEST(Dataset, OutputsNeverReplaceInputs) {
+  const fs::path dir = temp_dir("out_in");
+  const std::string path = (dir / "train.h5").string();
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(1, 3));
+    w.commit();
+  }
+  const Dataset written(path);  // our own output: may be replaced
+  {
+    DatasetWriter w(path, "{}", 2, 0.01);
+    w.add(make_trajectory(2, 3));
+    w.commit();
+  }
+  const fs::path input = dir / "input.h5";
+  fs::copy_file(path, input);
+  fs::create_symlink(input, dir / "link.h5");
+  const Dataset d(input.string());
+  EXPECT_NE(error_of([&] {
+              DatasetWriter((dir / "link.h5").string(), "{}", 2, 0.01);
+            }).find("link.h5: is an input of this command"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] {
+              DatasetWriter(input.string(), "{}", 2, 0.01);
+            }).find("input.h5: is an input of this command"),
+            std::string::npos);
+  EXPECT_EQ(Dataset(input.string()).seed(0), 2);
 }
 
 TEST(Dataset, ReadsPublicMeshGraphNetsLayout) {

@@ -405,6 +405,44 @@ TEST(Generate, ResumeAfterInterruptionGivesTheSameDataset) {
   expect_same_output(o.out_dir, merged);
 }
 
+// All or nothing: a part damaged after it was written (here: the last one, of the test split)
+// fails the merge, and no split file appears, not even the train and valid files written before
+// it; the parts stay for the next call, which solves the deleted part again and completes.
+TEST(Generate, DamagedPartLeavesNoSplitFileThenRegenerates) {
+  const FamilyConfig family = small_disks();
+  GenerateOptions o;
+  o.trajectories = 3;
+  o.split = {1, 1, 1};
+  o.seed = 5;
+  o.threads = 1;
+  o.out_dir = fresh_dir("damaged_part").string();
+  for (int64_t k = 1; k <= 2; ++k) {  // every part, by two shards, not merged
+    o.shard = {k, 2};
+    generate_dataset(family, o);
+  }
+  o.shard = {};
+  const fs::path part = fs::path(o.out_dir) / ".parts" / "traj_000002.h5";
+  ASSERT_TRUE(fs::exists(part));
+  fs::resize_file(part, fs::file_size(part) / 2);
+  try {
+    generate_dataset(family, o);
+    FAIL() << "a damaged part was merged";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("traj_000002.h5"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("delete this part"), std::string::npos) << e.what();
+  }
+  for (const char* split : {"train", "valid", "test"})
+    EXPECT_FALSE(fs::exists(fs::path(o.out_dir) / (std::string(split) + ".h5"))) << split;
+  for (const auto& entry : fs::directory_iterator(o.out_dir))
+    EXPECT_EQ(entry.path().string().find(".h5.tmp."), std::string::npos) << entry.path();
+  EXPECT_TRUE(fs::exists(fs::path(o.out_dir) / ".parts" / "traj_000000.h5"));
+  fs::remove(part);
+  const GenerateSummary s = generate_dataset(family, o);
+  EXPECT_TRUE(s.merged);
+  EXPECT_EQ(s.generated, 1);
+  EXPECT_EQ(Dataset(o.out_dir + "/test.h5").num_trajectories(), 1);
+}
+
 TEST(Generate, KillNineAtAnyMomentThenRerunGivesTheSameDataset) {
   const FamilyConfig family = small_disks();
   GenerateOptions o;
