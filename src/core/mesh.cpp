@@ -19,7 +19,6 @@
 
 #include "core/error.hpp"
 #include "core/gmsh_session.hpp"
-#include "core/hdf5_file.hpp"
 #include "core/msh_reader.hpp"
 
 namespace bsms {
