@@ -480,14 +480,6 @@ std::vector<std::string> H5File::attr_names(const std::string& object) const {
   return names;
 }
 
-namespace {
-std::string shape_string(const Shape& s) {
-  std::string out = "[";
-  for (size_t i = 0; i < s.size(); ++i) out += (i ? ", " : "") + std::to_string(s[i]);
-  return out + "]";
-}
-}  // namespace
-
 template <class T>
 std::vector<T> H5File::read(const std::string& name, Shape* shape_out, const Shape& expect) const {
   const Shape dims = shape(name);
