@@ -43,8 +43,11 @@ test-no-torch:
 	cmake --build build-no-torch -j $(JOBS)
 	cd build-no-torch && ctest --output-on-failure -j $(JOBS) --timeout 1800
 
+# `make demo DEMO_FAMILY=bodies3d`: the same pipeline on the 3-D family (runs/demo-bodies3d).
+DEMO_FAMILY ?= disks2d
+DEMO_OUT ?= $(if $(filter disks2d,$(DEMO_FAMILY)),$(RUNS)/demo,$(RUNS)/demo-$(DEMO_FAMILY))
 demo: build
-	./scripts/demo.sh $(BUILD) $(RUNS)/demo
+	DEMO_FAMILY=$(DEMO_FAMILY) ./scripts/demo.sh $(BUILD) $(DEMO_OUT)
 
 train-long: build
 	./scripts/train_long.sh $(BUILD) $(RUNS)/long

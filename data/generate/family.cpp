@@ -41,9 +41,11 @@ FamilyConfig parse_family(const Json& json, const std::string& file) {
     config.sampler = families::make_cantilever_sampler(common, s);
   } else if (config.family == "union") {
     config.sampler = families::make_union_sampler(common, s);
+  } else if (config.family == "bodies") {
+    config.sampler = families::make_bodies_sampler(common, s);
   } else {
     throw InputError(r.context("family").where() + ": unknown family '" + config.family +
-                     "' (allowed: disks, press, cantilever, union)");
+                     "' (allowed: disks, press, cantilever, union, bodies)");
   }
   s.finish();
   r.finish();

@@ -2,13 +2,14 @@
 // configs/scenes/*.json, inline under "scene") plus a "sample" section of parameter ranges. A
 // family-specific sampler turns a seeded random stream into one concrete scene per trajectory
 // (bodies, sizes, positions, velocities, materials, gravity). Families: "disks", "press",
-// "cantilever", "union", one file each in data/generate/families/; this file's parse_family is
-// the factory keyed by "family".
+// "cantilever", "union", "bodies", one file each in data/generate/families/; this file's
+// parse_family is the factory keyed by "family".
 //
 // Family file (strict; unknown keys, min > max and non-positive sizes are InputErrors):
 //   {"family": "disks", "scene": {...}, "frames": 50, "frame_dt": 0.03,
 //    "fields": ["velocity"], "sample": {...family keys...}}
-// A range is a number (fixed) or [min, max] (uniform); an integer range is sampled inclusively.
+// A range is a number (fixed), [min, max] (uniform) or {"log_uniform": [min, max]}; an integer
+// range is sampled inclusively.
 // Sample keys (lengths m, speeds m/s, angles degrees, accelerations m/s², materials as in scenes
 // with a range per numeric parameter):
 //   disks       count, radius, spacing, speed, gap, aim_jitter_deg, material, gravity (per axis)
@@ -18,6 +19,11 @@
 //   cantilever  length, thickness, spacing, material, load, load_angle_deg (0 = down)
 //   union       arm_length, arm_width, gap, base_height, disks, disk_radius, rotation_deg,
 //               spacing, speed, clearance, material, gravity (per axis)
+//   bodies      count (>= 2), shapes (sphere/disk, box), size (radius or half edge), box_aspect
+//               (per-axis factor on the half edge), spacing, speed, gap, aim_jitter_deg,
+//               contact_within (share of the duration by which the first two bodies meet),
+//               nodes (estimated mesh nodes of a draw, [min, max]), material, gravity (per
+//               axis); 2D or 3D
 #pragma once
 
 #include <cstdint>
@@ -56,7 +62,7 @@ class SceneSampler {
 struct FamilyConfig {
   std::string file;    // for messages
   Json source;         // resolved JSON (after --set overrides), recorded next to outputs
-  std::string family;  // "disks" | "press" | "cantilever" | "union"
+  std::string family;  // "disks" | "press" | "cantilever" | "union" | "bodies"
   int dim = 2;
   int frames = 0;                   // frames stored per trajectory, t = 0 included
   double frame_dt = 0.0;            // s between stored frames

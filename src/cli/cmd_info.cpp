@@ -45,6 +45,34 @@ void info_dataset(const std::string& path) {
   for (const auto& f : d.fields()) std::cout << ' ' << f.name << '[' << f.width << ']';
   std::cout << "\n  node types:";
   for (const auto& [type, count] : types) std::cout << ' ' << type << ':' << count;
+  // Generated data: what the solver cost and how many draws it lost (each trajectory records
+  // the attempt that succeeded; every earlier attempt was an unstable draw, redrawn).
+  std::vector<double> ms_per_frame;
+  int64_t redrawn = 0, redrawn_trajectories = 0, with_attempt = 0;
+  for (int64_t t = 0; t < d.num_trajectories(); ++t) {
+    const double s = d.solver_wall_s(t);
+    if (s >= 0 && d.num_frames(t) > 1)
+      ms_per_frame.push_back(1000.0 * s / static_cast<double>(d.num_frames(t) - 1));
+    const bsms::Json p = bsms::Json::parse(d.parameters(t), nullptr, false);
+    if (p.is_object() && p.contains("attempt") && p["attempt"].is_number_integer()) {
+      const int64_t attempt = p["attempt"].get<int64_t>();
+      ++with_attempt;
+      redrawn += attempt;
+      redrawn_trajectories += attempt > 0 ? 1 : 0;
+    }
+  }
+  if (!ms_per_frame.empty()) {
+    std::sort(ms_per_frame.begin(), ms_per_frame.end());
+    const size_t h = ms_per_frame.size() / 2;
+    const double median = ms_per_frame.size() % 2 == 1
+                              ? ms_per_frame[h]
+                              : 0.5 * (ms_per_frame[h - 1] + ms_per_frame[h]);
+    std::cout << "\n  solver: " << std::setprecision(2) << median
+              << " ms per frame (median, single-threaded solve)";
+  }
+  if (with_attempt > 0)
+    std::cout << "\n  unstable draws redrawn: " << redrawn << " (in " << redrawn_trajectories
+              << " of " << with_attempt << " trajectories)";
   std::cout << '\n' << std::defaultfloat << std::setprecision(6);  // for the next summary
 }
 

@@ -153,6 +153,19 @@ RolloutModel open_member(const std::string& run, const LagrangianSpec& first, co
   return open_model(folder, data, data_dir, seeding);
 }
 
+// Each coordinate clamped to its axis' walled interval (a side without a wall is open).
+torch::Tensor project_into_walls(const torch::Tensor& x, const BoxWalls& walls) {
+  std::vector<torch::Tensor> axes;
+  for (int64_t a = 0; a < x.size(1); ++a) {
+    const bool lo = !std::isnan(walls.lo[a]), hi = !std::isnan(walls.hi[a]);
+    torch::Tensor c = x.select(1, a);
+    if (lo) c = c.clamp_min(walls.lo[a]);
+    if (hi) c = c.clamp_max(walls.hi[a]);
+    axes.push_back(c);
+  }
+  return torch::stack(axes, 1);
+}
+
 }  // namespace
 
 RolloutMetrics rollout(const RolloutRequest& request) {
@@ -167,6 +180,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       throw InputError(config_file + ": an Eulerian run; --ensemble averages Lagrangian runs");
     if (request.symmetrize)
       throw InputError(config_file + ": an Eulerian run; --symmetrize maps Lagrangian states");
+    if (request.project_walls)
+      throw InputError(config_file + ": an Eulerian run; --project-walls moves Lagrangian nodes");
     return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file), levels,
                             folder.stats);
   }
@@ -228,6 +243,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   // Physical validity of the predicted and the true frames: overlap between bodies (cells of the
   // full dimension) and nodes outside the walls (box scenes with walls).
   const BoxWalls walls = scene_walls(data.scene(), spec.dim);
+  if (request.project_walls && walls.empty())
+    throw InputError(data.location() +
+                     ": --project-walls needs a box scene with walls (its scene has none)");
   ValidityTally validity(data.mesh(0).cell_size == spec.dim + 1 && spec.dim >= 2 && spec.dim <= 3,
                          !walls.empty() && spec.dim >= 2 && spec.dim <= 3);
   rollout_outputs::RolloutTally tally;
@@ -302,6 +320,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       }
       if (!members.empty()) accel = accel / static_cast<double>(members.size() + 1);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
+      if (request.project_walls) next = project_into_walls(next, walls);
       tally.infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(next).all().item<bool>()) {
         tally.diverged.push_back({t, f + 1});
@@ -375,6 +394,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.num_trajectories = count;
   metrics.one_step = request.one_step;
   metrics.symmetries = symmetries.empty() ? 1 : static_cast<int>(symmetries.size());
+  metrics.project_walls = request.project_walls;
   metrics.rmse_1 = rmse_over(curves, 1);
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());

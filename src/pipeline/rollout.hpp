@@ -33,6 +33,11 @@ struct RolloutRequest {
   // and the gravity), each state mapped, predicted and the acceleration mapped back, so the
   // averaged model is exactly equivariant to them. Default output RUN/rollout[...]_symmetric.
   bool symmetrize = false;
+  // A constraint after each predicted step: nodes beyond a wall of the data's box scene are put
+  // back on it (each coordinate clamped to the walled interval), which is what slip and sticky
+  // walls do to the solver's particles. The next step's velocity is then the clamped motion.
+  // Default output RUN/rollout[...]_walls.
+  bool project_walls = false;
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (docs/design.md "Runs").

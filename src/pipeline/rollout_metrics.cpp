@@ -266,6 +266,7 @@ Json to_json(const RolloutMetrics& m) {
   j["num_trajectories"] = m.num_trajectories;
   if (m.one_step) j["one_step"] = true;
   if (m.symmetries > 1) j["symmetries"] = m.symmetries;
+  if (m.project_walls) j["project_walls"] = true;
   j["rmse_1"] = to_json(m.rmse_1);
   j["rmse_50"] = to_json(m.rmse_50);
   j["rmse_all"] = to_json(m.rmse_all);
@@ -333,6 +334,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.num_trajectories = read_int_at_least<int64_t>(r, "num_trajectories", 0);
   m.one_step = r.opt<bool>("one_step", false);
   if (r.has("symmetries")) m.symmetries = read_int_at_least<int>(r, "symmetries", 1);
+  if (r.has("project_walls")) m.project_walls = r.get<bool>("project_walls");
   m.rmse_1 = field_rmse_from_json(r, "rmse_1");
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");

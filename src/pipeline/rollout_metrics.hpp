@@ -97,6 +97,9 @@ struct RolloutMetrics {
   // Symmetries each prediction was averaged over (bsms rollout --symmetrize; "symmetries",
   // written when > 1); 1: the plain model.
   int symmetries = 1;
+  // Nodes beyond a wall put back on it after each step (bsms rollout --project-walls;
+  // "project_walls", written when true).
+  bool project_walls = false;
   int levels = 1;
   int threads = 0;
   // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the

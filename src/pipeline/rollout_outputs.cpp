@@ -18,7 +18,8 @@ fs::path out_dir(const RolloutRequest& request) {
   if (!request.out.empty()) return fs::path(request.out);
   return fs::path(request.run) / ((request.one_step ? "rollout_one_step" : "rollout") +
                                   std::string(request.ensemble.empty() ? "" : "_ensemble") +
-                                  std::string(request.symmetrize ? "_symmetric" : ""));
+                                  std::string(request.symmetrize ? "_symmetric" : "") +
+                                  std::string(request.project_walls ? "_walls" : ""));
 }
 
 std::string prediction_file(const fs::path& out_dir, const std::string& split,

@@ -12,6 +12,8 @@
 #include "core/error.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/lagrangian.hpp"
+#include "pipeline/rollout.hpp"
+#include "pipeline/rollout_metrics.hpp"
 #include "pipeline/trainer.hpp"
 #include "plate_data.hpp"
 
@@ -130,6 +132,38 @@ TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
   // Trajectories shorter than 10x the horizon are refused.
   EXPECT_THROW(long_rollout_experiment(request("long2"), (dir_ / "short").string(), std::string()),
                InputError);
+}
+
+TEST_F(HardCasesTest, ProjectedWallsKeepEveryPredictedNodeInside) {
+  // The falling plate passes through a floor at y = 0.3 within the trajectory; the truth does too.
+  const char* floor = R"({"scene": {"background": {"type": "box", "min": [-1, 0.3], "max": [2, 2]},
+      "boundaries": [{"group": "bottom", "type": "slip"}]}})";
+  write_split(dir_ / "floor", "test", 1, 40, 6, testing::dragged_plate, floor);
+  RolloutRequest q;
+  q.run = (dir_ / "run").string();
+  q.data = (dir_ / "floor").string();
+  q.threads = 1;
+  q.quiet = true;
+  q.out = (dir_ / "plain").string();
+  const RolloutMetrics plain = rollout(q);
+  ASSERT_TRUE(plain.validity && plain.validity->model.outside_walls);
+  EXPECT_GT(plain.validity->truth.outside_walls->max, 0.01);
+  EXPECT_GT(plain.validity->model.outside_walls->max, 0.01);
+  EXPECT_FALSE(plain.project_walls);
+  q.project_walls = true;
+  q.out.clear();
+  const RolloutMetrics projected = rollout(q);
+  EXPECT_TRUE(projected.project_walls);
+  EXPECT_EQ(projected.validity->model.outside_walls->max, 0.0);
+  EXPECT_EQ(projected.validity->model.nodes_outside_walls->max, 0.0);
+  // The truth is scored as it is; the default folder says what was done.
+  EXPECT_EQ(projected.validity->truth.outside_walls->max, plain.validity->truth.outside_walls->max);
+  const fs::path folder = dir_ / "run" / "rollout_walls";
+  EXPECT_TRUE(fs::exists(folder / "metrics.json"));
+  EXPECT_TRUE(read_rollout_metrics((folder / "metrics.json").string()).project_walls);
+  // A scene without walls has nothing to project onto.
+  q.data = (dir_ / "data").string();
+  EXPECT_THROW(rollout(q), InputError);
 }
 
 TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {

@@ -8,6 +8,15 @@
 namespace bsms::generate::families {
 
 Range range_from(const Json& j, const JsonContext& ctx, Sign sign) {
+  if (j.is_object()) {
+    JsonObjectReader o(j, ctx);
+    const Json& ends = o.raw("log_uniform");
+    o.finish();
+    Range r = range_from(ends, ctx.child("log_uniform"), Sign::kAny);
+    require(r.min > 0.0, ctx.child("log_uniform"), "positive ends (a log-uniform range)");
+    r.log = true;
+    return r;
+  }
   Range r;
   if (j.is_number()) {
     r.min = r.max = j.get<double>();
@@ -15,7 +24,9 @@ Range range_from(const Json& j, const JsonContext& ctx, Sign sign) {
     r.min = j[0].get<double>();
     r.max = j[1].get<double>();
   } else {
-    throw InputError(ctx.where() + " must be a number or [min, max], got " + describe_json(j));
+    throw InputError(ctx.where() +
+                     " must be a number, [min, max] or {\"log_uniform\": [min, max]}, got " +
+                     describe_json(j));
   }
   require(std::isfinite(r.min) && std::isfinite(r.max), ctx, "finite");
   if (r.min > r.max) {

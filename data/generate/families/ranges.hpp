@@ -1,8 +1,11 @@
 // Strict readers of a family's "sample" ranges (family.hpp): a number (fixed) or [min, max]
 // (uniform), integer ranges, per-component vector ranges and materials with a range per numeric
-// parameter. Each names the file and key of a bad value (InputError).
+// parameter. Each names the file and key of a bad value (InputError). A positive quantity that
+// spans decades (a Young's modulus swept from jelly to rubber) may be {"log_uniform": [min, max]}:
+// uniform in log, so that every decade gets as many draws.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -15,7 +18,11 @@ namespace bsms::generate::families {
 
 struct Range {
   double min = 0.0, max = 0.0;
-  double sample(Rng& rng) const { return rng.uniform(min, max); }
+  bool log = false;  // log-uniform (min > 0)
+  // One uniform draw either way, so a draw's other values do not depend on this choice.
+  double sample(Rng& rng) const {
+    return log ? std::exp(rng.uniform(std::log(min), std::log(max))) : rng.uniform(min, max);
+  }
 };
 
 // `kPositive`: both ends must be > 0 (sizes, moduli, densities); `kNonNegative`: ≥ 0 (speeds,

@@ -1,4 +1,4 @@
-// The four scene families, one file each; parse_family (family.cpp) picks one by the config's
+// The five scene families, one file each; parse_family (family.cpp) picks one by the config's
 // "family" key. Each reads its "sample" section from `r` strictly (the caller finishes `r`) and
 // checks that the ranges fit the base scene (InputError naming the file and key).
 #pragma once
@@ -19,5 +19,7 @@ std::shared_ptr<const SceneSampler> make_press_sampler(FamilyBase base, JsonObje
 std::shared_ptr<const SceneSampler> make_cantilever_sampler(FamilyBase base, JsonObjectReader& r);
 // union.cpp: a gmsh boolean union of random shapes dropped onto the floor.
 std::shared_ptr<const SceneSampler> make_union_sampler(FamilyBase base, JsonObjectReader& r);
+// bodies.cpp: 2–4 spheres and boxes (disks and rectangles in 2D) thrown at each other, 2D or 3D.
+std::shared_ptr<const SceneSampler> make_bodies_sampler(FamilyBase base, JsonObjectReader& r);
 
 }  // namespace bsms::generate::families

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -211,6 +213,131 @@ TEST(Family, DiskDrawsAreDeterministicInRangeAndDisjoint) {
     EXPECT_NEAR(a.scene["solver"]["end_time"].get<double>(), 49 * 0.04, 1e-12);
   }
   EXPECT_EQ(counts, (std::set<int>{2, 3, 4}));
+}
+
+// The 3-D bodies family: spheres and boxes inside the box, apart by the gap (enclosing balls),
+// speeds in range, node estimates in range, and the first two thrown to meet: their centres'
+// closest approach under the relative velocity (gravity moves both alike) within half the
+// smaller body's inner radius, before half the duration.
+TEST(Family, BodiesDrawsAreInsideApartAndTheFirstPairMeets) {
+  const FamilyConfig family = load_family(kFamilies + "bodies3d.json");
+  ASSERT_EQ(family.dim, 3);
+  std::set<int> counts;
+  std::set<std::string> shapes;
+  for (int64_t i = 0; i < 300; ++i) {
+    Rng r1(static_cast<uint64_t>(trajectory_seed(3, i, 0)));
+    Rng r2(static_cast<uint64_t>(trajectory_seed(3, i, 0)));
+    const SampledScene a = family.sampler->sample(r1, ""), b = family.sampler->sample(r2, "");
+    ASSERT_EQ(a.scene, b.scene);
+    const Json& bodies = a.scene["bodies"];
+    counts.insert(static_cast<int>(bodies.size()));
+    std::vector<std::array<double, 3>> centre, velocity;
+    std::vector<double> bound, inner;
+    double nodes = 0.0;
+    const double h = bodies[0]["spacing"].get<double>();
+    for (const Json& body : bodies) {
+      const Json& shape = body["shape"];
+      const std::string type = shape["type"].get<std::string>();
+      shapes.insert(type);
+      std::array<double, 3> c{}, half{};
+      if (type == "box") {
+        const auto lo = shape["min"].get<std::vector<double>>();
+        const auto hi = shape["max"].get<std::vector<double>>();
+        double n = 1.0;
+        for (int k = 0; k < 3; ++k) {
+          c[k] = 0.5 * (lo[k] + hi[k]);
+          half[k] = 0.5 * (hi[k] - lo[k]);
+          EXPECT_GE(half[k], 0.1 * 0.75 - 1e-12);
+          EXPECT_LE(half[k], 0.15 * 1.25 + 1e-12);
+          n *= std::round(2.0 * half[k] / h) + 1.0;
+        }
+        nodes += n;
+        bound.push_back(std::sqrt(half[0] * half[0] + half[1] * half[1] + half[2] * half[2]));
+        inner.push_back(std::min({half[0], half[1], half[2]}));
+      } else {
+        ASSERT_EQ(type, "sphere");
+        const auto cc = shape["center"].get<std::vector<double>>();
+        const double r = shape["radius"].get<double>();
+        EXPECT_GE(r, 0.1 - 1e-12);
+        EXPECT_LE(r, 0.15 + 1e-12);
+        for (int k = 0; k < 3; ++k) c[k] = cc[k];
+        bound.push_back(r);
+        inner.push_back(r);
+        nodes += 1.5 * 4.0 / 3.0 * 3.14159265358979 * std::pow(r / h, 3);
+      }
+      for (int k = 0; k < 3; ++k) {  // inside the 1 m box, the gap from the walls
+        EXPECT_GE(c[k] - bound.back(), 0.04 - 1e-9);
+        EXPECT_LE(c[k] + bound.back(), 1.0 - 0.04 + 1e-9);
+      }
+      const auto v = body["velocity"]["value"].get<std::vector<double>>();
+      const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+      EXPECT_GE(speed, 0.5 - 1e-12);
+      EXPECT_LE(speed, 1.0 + 1e-12);
+      centre.push_back(c);
+      velocity.push_back({v[0], v[1], v[2]});
+      EXPECT_EQ(body["spacing"].get<double>(), h);
+    }
+    EXPECT_GE(nodes, 550.0);
+    EXPECT_LE(nodes, 2000.0);
+    for (size_t p = 0; p < centre.size(); ++p)
+      for (size_t q = 0; q < p; ++q) {
+        double d2 = 0.0;
+        for (int k = 0; k < 3; ++k) d2 += std::pow(centre[p][k] - centre[q][k], 2);
+        EXPECT_GE(std::sqrt(d2), bound[p] + bound[q] + 0.04 - 1e-9) << "draw " << i;
+      }
+    double dw = 0.0, ww = 0.0;
+    std::array<double, 3> d{}, w{};
+    for (int k = 0; k < 3; ++k) {
+      d[k] = centre[1][k] - centre[0][k];
+      w[k] = velocity[1][k] - velocity[0][k];
+      dw += d[k] * w[k];
+      ww += w[k] * w[k];
+    }
+    const double t = -dw / ww;
+    EXPECT_GE(t, 0.0);
+    EXPECT_LE(t, 0.5 * 49 * 0.04 + 1e-12);
+    double miss = 0.0;
+    for (int k = 0; k < 3; ++k) miss += std::pow(d[k] + t * w[k], 2);
+    EXPECT_LE(std::sqrt(miss), 0.5 * std::min(inner[0], inner[1]) + 1e-12) << "draw " << i;
+    EXPECT_EQ(a.scene["gravity"][1].get<double>(), -9.81);
+  }
+  EXPECT_EQ(counts, (std::set<int>{2, 3}));
+  EXPECT_EQ(shapes, (std::set<std::string>{"sphere", "box"}));
+}
+
+// A Young's modulus swept over decades: uniform in log, so each decade gets its share.
+TEST(Family, LogUniformRangesSpreadOverDecades) {
+  const FamilyConfig family =
+      load_family(kFamilies + "bodies3d.json",
+                  {"sample.material.youngs_modulus={\"log_uniform\": [1e3, 1e6]}"});
+  int below = 0, draws = 0;
+  for (int64_t i = 0; i < 400; ++i) {
+    Rng rng(static_cast<uint64_t>(trajectory_seed(4, i, 0)));
+    const SampledScene s = family.sampler->sample(rng, "");
+    const double e = s.scene["bodies"][0]["material"]["youngs_modulus"].get<double>();
+    ASSERT_GE(e, 1e3 * (1 - 1e-12));
+    ASSERT_LE(e, 1e6 * (1 + 1e-12));
+    below += e < std::sqrt(1e3 * 1e6) ? 1 : 0;
+    ++draws;
+  }
+  // Uniform in E would put 3 % below the geometric mean; uniform in log E half.
+  EXPECT_NEAR(static_cast<double>(below) / draws, 0.5, 0.1);
+  std::string m = input_error(kFamilies + "bodies3d.json",
+                              {"sample.material.youngs_modulus={\"log_uniform\": [0, 1e6]}"});
+  EXPECT_NE(m.find("sample.material.youngs_modulus.log_uniform"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json",
+                  {"sample.material.youngs_modulus={\"log_uniform\": [1e3, 1e6], \"base\": 10}"});
+  EXPECT_NE(m.find("base"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json", {"sample.shapes=[\"cone\"]"});
+  EXPECT_NE(m.find("sample.shapes"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json", {"sample.count=1"});
+  EXPECT_NE(m.find("sample.count"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json", {"sample.contact_within=0"});
+  EXPECT_NE(m.find("sample.contact_within"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json", {"sample.size=0.4"});
+  EXPECT_NE(m.find("sample.size"), std::string::npos) << m;
+  m = input_error(kFamilies + "bodies3d.json", {"sample.nodes=[10, 20]"});
+  EXPECT_NE(m.find("sample.count"), std::string::npos) << m;
 }
 
 TEST(Family, BadConfigsNameFileAndKey) {
@@ -571,6 +698,69 @@ TEST(Generate, EveryFamilyMakesATrajectory) {
                 std::string::npos);
     }
   }
+}
+
+// The first two bodies of a 3-D draw do collide in the solve. MPM bodies meet through the
+// background grid, so they push each other about one cell apart: the test is that their relative
+// velocity (which gravity and the walls leave alone until one is reached) turns by at least a
+// quarter while the bodies are within two cells of each other. Soft and small, for time.
+TEST(Generate, BodiesTouchInTheSolve) {
+  const double cell = 0.1;
+  const FamilyConfig family = load_family(
+      kFamilies + "bodies3d.json",
+      {"sample.count=2", "sample.nodes=[550, 800]", "sample.material.youngs_modulus=20000",
+       "scene.background.element_size=" + std::to_string(cell)});
+  const fs::path work = fresh_dir("bodies_touch");
+  fs::create_directories(work);
+  for (int64_t index = 0; index < 2; ++index) {
+    SCOPED_TRACE("trajectory " + std::to_string(index));
+    const Trajectory t = generate_trajectory(family, 9, index, 3, (work / "traj").string());
+    const int64_t n = t.mesh.num_nodes();
+    const auto& x = t.fields.at("world_pos");
+    auto at = [&](int64_t f, int64_t p, int k) { return double(x[(f * n + p) * 3 + k]); };
+    // Centre of body b at frame f, and the closest distance between the two bodies.
+    auto centre = [&](int64_t f, int b) {
+      std::array<double, 3> c{};
+      int64_t count = 0;
+      for (int64_t p = 0; p < n; ++p)
+        if (t.mesh.body_id[p] == b) {
+          for (int k = 0; k < 3; ++k) c[k] += at(f, p, k);
+          ++count;
+        }
+      for (double& v : c) v /= static_cast<double>(count);
+      return c;
+    };
+    auto closest = [&](int64_t f) {
+      double best = 1e300;
+      for (int64_t a = 0; a < n; ++a)
+        for (int64_t b = 0; b < n; ++b)
+          if (t.mesh.body_id[a] == 0 && t.mesh.body_id[b] == 1) {
+            double d2 = 0.0;
+            for (int k = 0; k < 3; ++k) d2 += std::pow(at(f, a, k) - at(f, b, k), 2);
+            best = std::min(best, d2);
+          }
+      return std::sqrt(best);
+    };
+    auto relative_velocity = [&](int64_t f) {
+      const auto a0 = centre(f, 0), a1 = centre(f + 1, 0), b0 = centre(f, 1), b1 = centre(f + 1, 1);
+      std::array<double, 3> w{};
+      for (int k = 0; k < 3; ++k) w[k] = (b1[k] - b0[k]) - (a1[k] - a0[k]);
+      return w;
+    };
+    const auto w0 = relative_velocity(0);
+    const double w0_norm = std::sqrt(w0[0] * w0[0] + w0[1] * w0[1] + w0[2] * w0[2]);
+    EXPECT_GT(closest(0), 0.04);
+    int64_t turned = -1;
+    for (int64_t f = 1; f + 1 < t.num_frames && turned < 0; ++f) {
+      const auto w = relative_velocity(f);
+      double change = 0.0;
+      for (int k = 0; k < 3; ++k) change += std::pow(w[k] - w0[k], 2);
+      if (std::sqrt(change) > 0.25 * w0_norm) turned = f;
+    }
+    ASSERT_GE(turned, 0) << "the relative velocity never changed: the bodies never met";
+    EXPECT_LT(closest(turned), 2.0 * cell) << "it changed at frame " << turned << " far apart";
+  }
+  fs::remove_all(work);
 }
 
 // Fuzzing regression (fuzz/fuzz_config.cpp): a background corner shorter than the scene's
