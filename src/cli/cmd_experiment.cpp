@@ -1,6 +1,6 @@
-// bsms experiment heat-sticks|zero-shot|seeding|long-rollout|predictability: the hard-case
-// experiments and the solver's predictability, each a report section (OUT/<name>.md,
-// OUT/plots/*.png) and OUT/metrics.json.
+// bsms experiment heat-sticks|zero-shot|seeding|long-rollout|predictability|solver-frontier: the
+// hard-case experiments, the solver's predictability and its speed-error frontier, each a report
+// section (OUT/<name>.md, OUT/plots/*.png) and OUT/metrics.json.
 #include <iostream>
 #include <memory>
 
@@ -8,6 +8,7 @@
 #include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/experiments/heat_sticks.hpp"
 #include "pipeline/experiments/predictability.hpp"
+#include "pipeline/experiments/solver_frontier.hpp"
 #include "pipeline/number_format.hpp"
 
 namespace {
@@ -41,7 +42,8 @@ std::shared_ptr<bsms::HardCaseRequest> add_common(CLI::App& sub) {
 
 BSMS_COMMAND(
     "experiment",
-    "hard-case experiments: heat-sticks, zero-shot, seeding, long-rollout; predictability",
+    "hard-case experiments: heat-sticks, zero-shot, seeding, long-rollout; predictability, "
+    "solver-frontier",
     [](CLI::App& sub) {
       sub.require_subcommand(1);
       {
@@ -181,6 +183,46 @@ BSMS_COMMAND(
                       << row["mode"].get<std::string>() << ": "
                       << row["rmse_all_over_constant_velocity"].dump();
           std::cout << "\n  -> " << o->out << "/predictability.md\n";
+        });
+      }
+      {
+        auto o = std::make_shared<bsms::SolverFrontierOptions>();
+        CLI::App* f = sub.add_subcommand(
+            "solver-frontier",
+            "re-solve a generated dataset at cheaper solver settings (coarser background, larger "
+            "CFL, coarser particles), scored against the stored frames like a rollout and timed: "
+            "the solver's own speed-error frontier");
+        f->add_option("--data", o->data, "dataset folder written by bsms generate")->required();
+        f->add_option("--out", o->out, "output folder (metrics.json, solver_frontier.md)")
+            ->required();
+        f->add_option("--split", o->split, "dataset split")->capture_default_str();
+        f->add_option("--trajectories,--max-trajectories", o->max_trajectories,
+                      "at most K trajectories (0 = all)")
+            ->check(CLI::NonNegativeNumber);
+        f->add_option("--setting", o->settings,
+                      "NAME=scene.KEY=VALUE[,scene.KEY=VALUE...] (or sample.KEY=VALUE): a named "
+                      "solver setting (repeatable; default: background x1.5 and x2, CFL x2 and "
+                      "x3, particle spacing x1.5)");
+        f->add_flag("--quiet", o->quiet, "no progress bar");
+        bsms::cli::add_threads_option(*f, o->threads);
+        f->footer(
+            "Solves run single-threaded, --threads at once. Example: bsms experiment "
+            "solver-frontier --data runs/fr/data --out runs/fr/frontier --threads 2\n"
+            "Then: bsms report RUN... --out DIR --solver-frontier runs/fr/frontier");
+        f->callback([o] {
+          const bsms::cli::RemoveOnFailure cleanup(o->out);
+          const bsms::SolverFrontier m = bsms::solver_frontier_experiment(*o);
+          std::cout << "solver-frontier (" << m.trajectories << " trajectories, " << m.threads
+                    << " solves at once, " << m.wall_s
+                    << " s): ms/frame, RMSE-all / constant velocity";
+          const auto line = [](const bsms::FrontierSetting& s) {
+            std::cout << "\n  " << s.name << ": " << bsms::format_number(s.ms_per_frame) << ", "
+                      << bsms::format_number(s.rmse_all_over_constant_velocity)
+                      << (s.unstable > 0 ? ", " + std::to_string(s.unstable) + " unstable" : "");
+          };
+          line(m.ground_truth);
+          for (const auto& s : m.settings) line(s);
+          std::cout << "\n  -> " << o->out << "/solver_frontier.md\n";
         });
       }
     });

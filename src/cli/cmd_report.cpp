@@ -1,4 +1,4 @@
-// bsms report RUN... --out DIR [--title T] [--rollout NAME]
+// bsms report RUN... --out DIR [--title T] [--rollout NAME] [--solver-frontier DIR]
 #include <iostream>
 
 #include "cli/command.hpp"
@@ -15,6 +15,10 @@ BSMS_COMMAND("report", "table and plots (speed vs error, RMSE over steps, loss) 
                sub.add_option("--rollout", r->rollout,
                               "rollout folder read in each run (default rollout; e.g. "
                               "rollout_symmetric, rollout_ensemble)");
+               sub.add_option("--solver-frontier", r->solver_frontier,
+                              "output folder of bsms experiment solver-frontier: the solver at "
+                              "cheaper settings beside the models (plot, table, and whether a "
+                              "setting beats each run at equal cost)");
                sub.callback([r] { std::cout << bsms::write_report(*r) << '\n'; });
              });
 

@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
+#include <optional>
 #include <sstream>
 
 #include "core/config.hpp"
@@ -13,6 +15,7 @@
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
 #include "pipeline/animation.hpp"
+#include "pipeline/experiments/solver_frontier.hpp"
 #include "pipeline/number_format.hpp"
 #include "pipeline/plotting.hpp"
 #include "pipeline/rollout_metrics.hpp"
@@ -155,6 +158,89 @@ void write_training_cost(std::ostringstream& md, const std::vector<RunData>& run
   }
 }
 
+// The solver settings of a frontier a run is compared with: the ground-truth settings and each
+// cheaper one that was stable on every trajectory (a setting's figures over fewer trajectories
+// would not be the same test).
+std::vector<const FrontierSetting*> frontier_candidates(const SolverFrontier& f) {
+  std::vector<const FrontierSetting*> out;
+  const auto usable = [](const FrontierSetting& s) {
+    return s.unstable == 0 && std::isfinite(s.ms_per_frame) && std::isfinite(s.rmse_all);
+  };
+  if (usable(f.ground_truth)) out.push_back(&f.ground_truth);
+  for (const auto& s : f.settings)
+    if (usable(s)) out.push_back(&s);
+  return out;
+}
+
+// Whether `a` and `b` name the same dataset file (the same path, or the same file by another).
+bool same_data(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  std::error_code ec;
+  return fs::exists(a, ec) && fs::exists(b, ec) && fs::equivalent(a, b, ec);
+}
+
+// The frontier as a table, and one sentence per run: is a solver setting at least as fast as the
+// model (ms/frame <= its inference ms/step) and more accurate (lower RMSE-all)?
+void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
+                    const SolverFrontier& f, const std::string& source) {
+  const auto sci = [](double v) { return format_number(v, 2, Notation::kScientific); };
+  md << "\nUMLS-MPM at cheaper settings (`" << source
+     << "`, bsms experiment solver-frontier: " << f.trajectories << " trajectories of `" << f.data
+     << "` re-solved single-threaded, " << f.threads
+     << " at once, and scored against the stored frames like a rollout; speed-up against the "
+        "ground-truth settings timed in the same run).\n\n"
+     << "| solver setting | changes | ms/frame | speed-up vs ground truth | RMSE-all | × constant "
+        "velocity | unstable |\n|---|---|---|---|---|---|---|\n";
+  const auto row = [&](const FrontierSetting& s) {
+    std::string changes;
+    for (const auto& a : s.assignments) changes += (changes.empty() ? "`" : ", `") + a + "`";
+    md << "| " << s.name << (s.interpolated ? " (interpolated)" : "") << " | "
+       << (changes.empty() ? "as stored" : changes) << " | "
+       << format_number(s.ms_per_frame, 2, Notation::kFixed) << " | "
+       << format_number(s.speedup_vs_ground_truth, 2, Notation::kFixed) << "× | " << sci(s.rmse_all)
+       << " | " << format_number(s.rmse_all_over_constant_velocity, 3) << " | " << s.unstable
+       << " |\n";
+  };
+  row(f.ground_truth);
+  for (const auto& s : f.settings) row(s);
+  md << "\nEach run against the solver at these settings (solver ms/frame single-threaded, the "
+        "model's inference ms/step with its own threads; a setting with unstable solves is not "
+        "counted):\n\n";
+  const std::vector<const FrontierSetting*> candidates = frontier_candidates(f);
+  for (const auto& r : runs) {
+    const RolloutMetrics& m = r.metrics;
+    const std::string name = fs::path(r.dir).filename().string();
+    if (m.eulerian) {
+      md << "- " << name << ": an Eulerian run, not compared with the Lagrangian solver.\n";
+      continue;
+    }
+    // A diverged rollout has no RMSE-all: any setting at least as fast beats it.
+    double model_rmse = primary_rmse(m, m.rmse_all);
+    if (!std::isfinite(model_rmse)) model_rmse = std::numeric_limits<double>::infinity();
+    std::vector<const FrontierSetting*> beating;
+    for (const FrontierSetting* c : candidates)
+      if (c->ms_per_frame <= m.infer_ms_per_step && c->rmse_all < model_rmse) beating.push_back(c);
+    std::sort(beating.begin(), beating.end(),
+              [](const auto* a, const auto* b) { return a->rmse_all < b->rmse_all; });
+    md << "- " << name << " (" << format_number(m.infer_ms_per_step, 2, Notation::kFixed)
+       << " ms/step, RMSE-all " << sci(primary_rmse(m, m.rmse_all)) << " m): ";
+    if (beating.empty()) {
+      md << "no cheaper solver setting is both as fast and as accurate.";
+    } else {
+      const FrontierSetting& b = *beating.front();
+      md << "beaten by solver setting " << b.name << " ("
+         << format_number(b.ms_per_frame, 2, Notation::kFixed) << " ms/frame, RMSE-all "
+         << sci(b.rmse_all) << " m)";
+      for (size_t k = 1; k < beating.size(); ++k)
+        md << (k == 1 ? "; also by " : ", ") << beating[k]->name;
+      md << ".";
+    }
+    if (!same_data(m.data, f.data))
+      md << " (Rolled out on `" << m.data << "`, the frontier measured on `" << f.data
+         << "`: other trajectories.)";
+    md << "\n";
+  }
+}
 }  // namespace
 
 std::string write_report(const ReportRequest& request) {
@@ -181,6 +267,8 @@ std::string write_report(const ReportRequest& request) {
     r.loss_window = training_loss_window(r.log.size());
     runs.push_back(std::move(r));
   }
+  std::optional<SolverFrontier> frontier;
+  if (!request.solver_frontier.empty()) frontier = read_solver_frontier(request.solver_frontier);
   const fs::path out = request.out;
   const fs::path plots = out / "plots";
   std::error_code ec;
@@ -228,6 +316,23 @@ std::string write_report(const ReportRequest& request) {
     }
     // The solver is the reference: error 0 by definition.
     if (solver_ms > 0) speed << "\"UMLS-MPM solver (ground truth)\" " << solver_ms << " 0\n";
+    // A second data block (gnuplot index 1): the frontier's points (not a line: a setting may be
+    // cheaper and worse than another), cheapest last.
+    if (frontier) {
+      std::vector<const FrontierSetting*> points = {&frontier->ground_truth};
+      for (const auto& s : frontier->settings) points.push_back(&s);
+      std::sort(points.begin(), points.end(),
+                [](const auto* a, const auto* b) { return a->ms_per_frame > b->ms_per_frame; });
+      speed << "\n\n";
+      for (const FrontierSetting* s : points) {
+        if (!std::isfinite(s->ms_per_frame) || !std::isfinite(s->rmse_all)) continue;
+        speed << '"' << s->name
+              << (s->unstable > 0 ? " (" + std::to_string(s->unstable) + " unstable)"
+                                  : std::string())
+              << "\" " << format_number(s->ms_per_frame, 6, Notation::kFixed) << ' '
+              << format_number(s->rmse_all, 8, Notation::kFixed) << '\n';
+      }
+    }
   }
 
   // --- plots
@@ -300,8 +405,15 @@ std::string write_report(const ReportRequest& request) {
          "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
          "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
          "0.1, graph 0.05\n";
-    g << "plot " << gnuplot_quoted((plots / "speed.dat").string())
-      << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle\n";
+    const std::string dat = gnuplot_quoted((plots / "speed.dat").string());
+    g << "plot " << dat << (frontier ? " index 0" : "")
+      << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle";
+    if (frontier)
+      g << ", " << dat
+        << " index 1 using 2:3 with points pt 5 ps 1.5 lc rgb 'dark-red' title "
+           "'UMLS-MPM at cheaper settings', "
+        << dat << " index 1 using 2:3:1 with labels offset 1,-1 tc rgb 'dark-red' notitle";
+    g << '\n';
     if (draw_plot(plots / "speed_vs_error.gp", g.str())) images.push_back("speed_vs_error.png");
   }
   {
@@ -400,6 +512,7 @@ std::string write_report(const ReportRequest& request) {
       md << "_\n";
     }
   }
+  if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
   // What a model must beat: extrapolating the first velocity of each test trajectory.
   const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);
   const double held = RolloutMetrics::rmse(runs.front().metrics.rmse_all_persistence, "velocity");
