@@ -11,8 +11,10 @@
 # "10000 100000 1000000" in 3-D), STIFF_TRAJECTORIES (100), STIFF_TRAIN_SECONDS (360), STIFF_SEED
 # (0), STIFF_THREADS (0 = all), STIFF_SET (further generator overrides, space-separated; 2-D
 # default "scene.solver.transfer=apic": FLIP loses draws to inverted particles from ~1 MPa, APIC
-# holds, and one solver for every E keeps the points comparable)). Resumable: a finished point is
-# kept.
+# holds, and one solver for every E keeps the points comparable), STIFF_COST_E (moduli at which only
+# the solver's cost is measured, on STIFF_COST_TRAJECTORIES (6) trajectories each: the solver's
+# side of the crossover on a finer grid of E than training allows; default none)). Resumable: a
+# finished point is kept.
 set -euo pipefail
 
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -27,7 +29,7 @@ case $family in
   bodies3d) moduli=${STIFF_E:-10000 100000 1000000}; sets=${STIFF_SET-} ;;
   *) echo "stiffness: STIFF_FAMILY=$family: expected disks2d or bodies3d" >&2; exit 2 ;;
 esac
-for e in $moduli; do
+for e in $moduli ${STIFF_COST_E:-}; do
   [[ $e =~ ^[0-9]+([.][0-9]+)?([eE][+]?[0-9]+)?$ ]] ||
     { echo "stiffness: STIFF_E: '$e' is not a positive modulus in Pa" >&2; exit 2; }
 done
@@ -111,6 +113,31 @@ unset multiplot
 EOF
   [[ -f $out_dir/stiffness.png.tmp ]] && mv "$out_dir/stiffness.png.tmp" "$out_dir/stiffness.png"
 fi
+# The solver's cost alone at further moduli (no training): ms per frame and the draws it lost.
+if [[ -n ${STIFF_COST_E:-} ]]; then
+  cost_trajectories=${STIFF_COST_TRAJECTORIES:-6}
+  {
+    echo
+    echo "## The solver's cost alone ($cost_trajectories trajectories per E, seed $seed)"
+    echo
+    echo "| E (Pa) | solver ms/frame (median) | unstable draws redrawn |"
+    echo "|---|---|---|"
+  } >>"$table"
+  for e in $STIFF_COST_E; do
+    cost=$out_dir/cost/E$e
+    if [[ ! -f $cost/test.h5 ]]; then
+      rm -rf "$cost"
+      "$bsms" generate "$root/configs/families/$family.json" --out "$cost" \
+        --trajectories "$cost_trajectories" --split 0:0:1 --seed "$seed" --threads "$threads" \
+        --set "sample.material.youngs_modulus=$e" "${set_args[@]}"
+    fi
+    summary=$("$bsms" info "$cost/test.h5")
+    ms=$(sed -n 's/.*solver: \([^ ]*\) ms per frame.*/\1/p' <<<"$summary")
+    redrawn=$(sed -n 's/.*unstable draws redrawn: \([0-9]*\).*/\1/p' <<<"$summary")
+    echo "| $e | ${ms:-n/a} | ${redrawn:-n/a} |" >>"$table"
+  done
+fi
+
 "$bsms" report "${runs[@]}" --out "$out_dir/report" \
   --title "Stiffness sweep: $family at E = ${moduli// /, } Pa (${seconds} s of training each)"
 echo "stiffness: wrote $table, $out_dir/stiffness.png and $out_dir/report/report.md"

@@ -2,7 +2,8 @@
 # ParaView opens every kind of XDMF bsms writes, in each of its three XDMF readers (XDMFReader,
 # Xdmf3ReaderS, Xdmf3ReaderT), without an error or warning line and without crashing, with the
 # HDF5 source's point and cell counts, time steps, one point's coordinates and one node field's
-# value (paraview_xdmf.py). Kinds: a bsms dataset (2-D, exported to another folder), rollouts (a
+# value (paraview_xdmf.py). Kinds: bsms datasets (2-D disks and 3-D bodies, exported to another
+# folder), rollouts (a
 # 3-step run rolled out, Lagrangian, and one on cylinder_flow, Eulerian), the MeshGraphNets
 # fixtures exported (cylinder_flow and airfoil: Eulerian, fixed mesh; deforming_plate: 3-D
 # tetrahedra; flag_simple: cloth, 2-D mesh in 3-D) and the solver's particle frames (bsms
@@ -42,6 +43,12 @@ quiet() { "$@" >/dev/null 2>log.txt || { cat log.txt >&2; echo "FAIL: $*" >&2; e
 quiet "$bsms" generate "$src/configs/families/disks2d.json" --out data --trajectories 3 \
   --split 1:1:1 --set frames=6 --set 'sample.count=[2,2]' --threads 1
 quiet "$bsms" export data/train.h5 --xdmf --out bsms_view
+# A 3-D dataset of the bodies family (tetrahedra of spheres and boxes), one small, soft
+# trajectory (its bodies must meet, so it keeps the family's duration).
+quiet "$bsms" generate "$src/configs/families/bodies3d.json" --out bodies --trajectories 1 \
+  --split 0:0:1 --set sample.count=2 --set 'sample.nodes=[550, 800]' \
+  --set sample.material.youngs_modulus=20000 --set scene.background.element_size=0.1 --threads 1
+quiet "$bsms" export bodies/test.h5 --xdmf --out bodies_view
 printf '{"data": "%s", "steps": 3, "valid_every": 2, "valid_samples": 2, "normalizer_steps": 2, "model": {"type": "bsms", "latent": 8, "levels": 2}, "optimizer": {"warmup_steps": 1}}\n' \
   "$work/data" >run.json
 quiet "$bsms" train run.json --out run --threads 1
@@ -65,6 +72,7 @@ quiet "$bsms" simulate "$src/configs/scenes/sphere_expansion.json" --out frames3
 # xdmf | kind | HDF5 source | field
 cases=(
   "bsms_view/train_000000.xdmf dataset data/train.h5 velocity"
+  "bodies_view/test_000000.xdmf dataset bodies/test.h5 velocity"
   "run/rollout/test_000000.xdmf dataset run/rollout/test.h5 target_world_pos"
   "run_cylinder/rollout/test_000000.xdmf dataset run_cylinder/rollout/test.h5 velocity"
   "mgn_cylinder_flow/train_000000.xdmf dataset mgn_cylinder_flow/train_000000.h5 velocity"
