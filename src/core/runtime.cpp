@@ -35,6 +35,21 @@ bool single_threaded_blas() {
   return set != nullptr;
 }
 
+std::string cpu_model_name() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) != 0) continue;
+    const size_t colon = line.find(':');
+    if (colon == std::string::npos) break;
+    const size_t begin = line.find_first_not_of(" \t", colon + 1);
+    const size_t end = line.find_last_not_of(" \t\r");
+    if (begin == std::string::npos || end < begin) break;
+    return line.substr(begin, std::min<size_t>(end - begin + 1, 200));
+  }
+  return "unknown";
+}
+
 CpuFeatures cpu_features() {
   __builtin_cpu_init();
   CpuFeatures cpu;

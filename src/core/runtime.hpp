@@ -33,6 +33,11 @@ struct CpuFeatures {
 };
 CpuFeatures cpu_features();
 
+// The CPU's name as the kernel reports it (/proc/cpuinfo "model name", e.g. "AMD EPYC 9R14"),
+// written beside timed figures: this project's machines come as Intel or AMD on different days,
+// and a time means little without its CPU. "unknown" where the file or the field is missing.
+std::string cpu_model_name();
+
 // OpenBLAS's kernel set in this process (openblas_get_corename, e.g. "SkylakeX", "Haswell",
 // "Zen", "Prescott") and its build line (openblas_get_config); "" when no OpenBLAS is loaded.
 std::string blas_core();

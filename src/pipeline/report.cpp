@@ -512,6 +512,17 @@ std::string write_report(const ReportRequest& request) {
       md << "_\n";
     }
   }
+  {
+    // Which CPU timed the figures above (a run rolled out elsewhere says so).
+    std::vector<std::string> cpus;
+    for (const auto& r : runs)
+      if (std::find(cpus.begin(), cpus.end(), r.metrics.cpu) == cpus.end())
+        cpus.push_back(r.metrics.cpu);
+    md << "\nTimed on: ";
+    for (size_t k = 0; k < cpus.size(); ++k)
+      md << (k ? "; " : "") << (cpus[k].empty() ? "CPU not recorded" : cpus[k]);
+    md << ".\n";
+  }
   if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
   // What a model must beat: extrapolating the first velocity of each test trajectory.
   const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);

@@ -297,6 +297,7 @@ Json to_json(const RolloutMetrics& m) {
   j["peak_rss_mb_infer"] = m.peak_rss_mb_infer;
   j["num_nodes_mean"] = m.num_nodes_mean;
   j["threads"] = m.threads;
+  if (!m.cpu.empty()) j["cpu"] = m.cpu;
   Json diverged = Json::array();
   for (const auto& d : m.diverged)
     diverged.push_back({{"trajectory", d.trajectory}, {"frame", d.frame}});
@@ -367,6 +368,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.peak_rss_mb_infer = read_at_least(r, "peak_rss_mb_infer");
   m.num_nodes_mean = read_at_least(r, "num_nodes_mean");
   m.threads = read_int_at_least<int>(r, "threads", 0);
+  m.cpu = r.opt<std::string>("cpu", "");
   m.diverged = diverged_from_json(r);
   m.levels = read_int_at_least<int>(r, "levels", 1);
   m.train_ms_per_step = read_nullable(r, "train_ms_per_step");

@@ -102,6 +102,7 @@ struct RolloutMetrics {
   bool project_walls = false;
   int levels = 1;
   int threads = 0;
+  std::string cpu;  // cpu_model_name() of the machine that timed it ("cpu"; older files: "")
   // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the
   // RMSE of each predicted step per field (Lagrangian: world_pos only).
   std::optional<FieldRmse> rmse_1, rmse_50, rmse_all;

@@ -50,6 +50,7 @@ void add_run_figures(RolloutMetrics& metrics, const RolloutTally& tally, int64_t
   metrics.peak_rss_mb_infer = peak_rss_mb();
   metrics.num_nodes_mean = count > 0 ? tally.nodes_total / static_cast<double>(count) : 0.0;
   metrics.threads = threads;
+  metrics.cpu = cpu_model_name();
   metrics.diverged = tally.diverged;
   metrics.levels = levels;
   if (!stats) return;

@@ -84,5 +84,24 @@ TEST(CpuFeatures, AgreeWithTheKernelsFlags) {
   EXPECT_EQ(cpu.avx512bw, flags.count("avx512bw") == 1);
 }
 
+// The name written beside timed figures: the kernel's "model name" without its padding, one line.
+TEST(CpuModelName, IsTheKernelsModelNameTrimmed) {
+  const std::string name = cpu_model_name();
+  ASSERT_FALSE(name.empty());
+  EXPECT_EQ(name.find('\n'), std::string::npos);
+  std::ifstream cpuinfo("/proc/cpuinfo");
+  std::string line, expected = "unknown";
+  while (std::getline(cpuinfo, line))
+    if (line.rfind("model name", 0) == 0) {
+      expected = line.substr(line.find(':') + 1);
+      expected.erase(0, expected.find_first_not_of(" \t"));
+      expected.erase(expected.find_last_not_of(" \t") + 1);
+      break;
+    }
+  EXPECT_EQ(name, expected);
+  EXPECT_NE(name.front(), ' ');
+  EXPECT_NE(name.back(), ' ');
+}
+
 }  // namespace
 }  // namespace bsms

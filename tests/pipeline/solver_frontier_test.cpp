@@ -199,6 +199,15 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   EXPECT_NE(p[3].assignments[0].find("_spacing=0.0375"), std::string::npos);
   ASSERT_EQ(notes.size(), 1u);
   EXPECT_NE(notes[0].find("cfl_x2: capped at CFL 1"), std::string::npos) << notes[0];
+  // The bodies family's node-count bounds shrink with the coarser spacing (1.5^3 in 3-D), so the
+  // re-solve draws the same bodies: the family still parses and draws them.
+  notes.clear();
+  Json bodies = load_json_file(families + "bodies3d.json");
+  bodies["sample"]["nodes"] = Json::array({675, 2700});
+  const auto b = default_solver_settings(bodies, notes);
+  ASSERT_EQ(b.back().name, "spacing_x1.5");
+  EXPECT_EQ(b.back().assignments,
+            (std::vector<std::string>{"sample.spacing=0.0525", "sample.nodes=[200,800]"}));
 }
 
 // RMSE-all of constant velocity over predicted frames 2 .. F-1, computed here from the file.

@@ -211,8 +211,9 @@ std::string markdown(const SolverFrontier& r) {
      << r.frames
      << " frames, each solved again by UMLS-MPM at its ground-truth settings and at each setting "
         "below: single-threaded solves, "
-     << r.threads << " at once (" << r.hardware_threads
-     << " hardware threads), timed in the same run. Scored against the stored frames as bsms "
+     << r.threads << " at once (" << r.hardware_threads << " hardware threads, "
+     << (r.cpu.empty() ? std::string("CPU not recorded") : r.cpu)
+     << "), timed in the same run. Scored against the stored frames as bsms "
         "rollout scores a model: RMSE of world position over the predicted frames 2 to the last "
         "(m), beside constant velocity (the first velocity extrapolated: "
      << sci(r.rmse_all_constant_velocity)
@@ -493,6 +494,19 @@ std::vector<SolverSetting> default_solver_settings(const Json& family,
                                       "," + text(v[1].get<double>() * 1.5) + "]");
       }
     }
+  // The bodies family bounds a draw's estimated node count, which a coarser spacing lowers by
+  // 1.5^dim: the bounds follow, so that the re-solve draws the same bodies.
+  if (!spacing.assignments.empty() && family["sample"].contains("nodes") && scene.contains("dim") &&
+      scene["dim"].is_number_integer()) {
+    const Json& v = family["sample"]["nodes"];
+    const double shrink = std::pow(1.5, -scene["dim"].get<int>());
+    if (v.is_number()) {
+      spacing.assignments.push_back("sample.nodes=" + text(v.get<double>() * shrink));
+    } else if (v.is_array() && v.size() == 2 && v[0].is_number() && v[1].is_number()) {
+      spacing.assignments.push_back("sample.nodes=[" + text(v[0].get<double>() * shrink) + "," +
+                                    text(v[1].get<double>() * shrink) + "]");
+    }
+  }
   if (!spacing.assignments.empty())
     out.push_back(spacing);
   else
@@ -513,6 +527,7 @@ Json to_json(const SolverFrontier& r) {
           {"frames", r.frames},
           {"threads", r.threads},
           {"hardware_threads", r.hardware_threads},
+          {"cpu", r.cpu},
           {"wall_s", r.wall_s},
           {"rmse_all_constant_velocity", measure_json(r.rmse_all_constant_velocity)},
           {"stored_ms_per_frame", nullable_json(r.stored_ms_per_frame)},
@@ -534,6 +549,7 @@ SolverFrontier solver_frontier_from_json(const Json& json, const std::string& fi
   f.frames = read_int_at_least<int64_t>(r, "frames", 3);
   f.threads = read_int_at_least<int>(r, "threads", 1);
   f.hardware_threads = read_int_at_least<int>(r, "hardware_threads", 1);
+  f.cpu = r.opt<std::string>("cpu", "");
   f.wall_s = read_at_least(r, "wall_s");
   f.rmse_all_constant_velocity = read_measure(r, "rmse_all_constant_velocity");
   f.stored_ms_per_frame = read_nullable(r, "stored_ms_per_frame");
@@ -651,6 +667,7 @@ SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   result.frames = family.frames;
   result.threads = threads;
   result.hardware_threads = hardware_threads();
+  result.cpu = cpu_model_name();
   result.wall_s = clock.seconds();
   double cv_sq = 0, cv_steps = 0;
   for (const auto& st : stored)

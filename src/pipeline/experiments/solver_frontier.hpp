@@ -94,6 +94,7 @@ struct SolverFrontier {
   int64_t frames = 0;  // per trajectory
   int threads = 0;     // solves at once, each single-threaded
   int hardware_threads = 0;
+  std::string cpu;  // cpu_model_name() of the machine that timed the solves
   double wall_s = 0.0;
   double rmse_all_constant_velocity = 0.0;  // over all trajectories
   // The dataset's own timing of these solves (bsms generate, the median of its per-trajectory

@@ -295,7 +295,7 @@ TEST(Family, BodiesDrawsAreInsideApartAndTheFirstPairMeets) {
     }
     const double t = -dw / ww;
     EXPECT_GE(t, 0.0);
-    EXPECT_LE(t, 0.5 * 49 * 0.04 + 1e-12);
+    EXPECT_LE(t, 0.5 * (family.frames - 1) * family.frame_dt + 1e-12);
     double miss = 0.0;
     for (int k = 0; k < 3; ++k) miss += std::pow(d[k] + t * w[k], 2);
     EXPECT_LE(std::sqrt(miss), 0.5 * std::min(inner[0], inner[1]) + 1e-12) << "draw " << i;
