@@ -24,6 +24,11 @@ struct Material {
   double yield_stress = 0.0;           // σ_0 (peak), Pa, > 0
   double residual_yield_stress = 0.0;  // σ_r, Pa, in (0, σ_0]
   double softening = 0.0;              // ξ, dimensionless, >= 0
+  // Kelvin–Voigt viscosity η, Pa·s, >= 0 (any model): the Cauchy stress gains η (∇v + ∇vᵀ), so a
+  // stiff body's vibrations die out while a rigid motion (∇v skew) keeps its energy. Stiff bodies
+  // ring at frequencies far above a dataset's frame rate (rubber balls of 0.1 m: kHz against
+  // 50 Hz frames); undamped, that ringing is aliased noise no model can predict.
+  double viscosity = 0.0;
   double yield_stress_at(double alpha) const;
   double mu() const { return youngs_modulus / (2.0 * (1.0 + poisson_ratio)); }
   double lambda() const {

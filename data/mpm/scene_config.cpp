@@ -36,6 +36,9 @@ Material parse_material(const Json& j, const JsonContext& ctx) {
           "in (-1, 0.5)");
   m.density = r.get<double>("density");
   require(m.density > 0.0, r.context("density"), "> 0 (kg/m^3)");
+  m.viscosity = r.opt<double>("viscosity", 0.0);
+  require(std::isfinite(m.viscosity) && m.viscosity >= 0.0, r.context("viscosity"),
+          ">= 0 (Pa s, Kelvin-Voigt damping)");
   if (m.model == MaterialModel::kHenckyJ2) {
     // Plasticity keys exist only for hencky_j2 (elsewhere finish() rejects them as unknown).
     m.yield_stress = r.get<double>("yield_stress");

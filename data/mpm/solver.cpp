@@ -122,7 +122,10 @@ MpmSolver<Dim>::MpmSolver(BackgroundMesh<Dim> background, std::vector<Material> 
   constraints_.resize(constraint_offsets_[n]);
   std::vector<int32_t> fill(constraint_offsets_.begin(), constraint_offsets_.end() - 1);
   for (const auto& c : constraints) constraints_[fill[c.node]++] = c;
-  for (const auto& m : materials_) max_wave_speed_ = std::max(max_wave_speed_, m.wave_speed());
+  for (const auto& m : materials_) {
+    max_wave_speed_ = std::max(max_wave_speed_, m.wave_speed());
+    max_kinematic_viscosity_ = std::max(max_kinematic_viscosity_, m.viscosity / m.density);
+  }
 
   const int32_t P = particles_.size();
   if (particles_.plastic_strain.empty()) particles_.plastic_strain.assign(P, 0.0);
@@ -178,7 +181,11 @@ double MpmSolver<Dim>::stable_dt() const {
   const int32_t P = particles_.size();
 #pragma omp parallel for reduction(max : vmax) schedule(static)
   for (int32_t p = 0; p < P; ++p) vmax = std::max(vmax, particles_.v[p].norm());
-  return settings_.cfl * kernel_.cfl_spacing() / (max_wave_speed_ + vmax);
+  const double h = kernel_.cfl_spacing();
+  const double dt = settings_.cfl * h / (max_wave_speed_ + vmax);
+  // Explicit viscosity is a diffusion of velocity: stable for dt ≤ h² / (2 Dim ν).
+  if (max_kinematic_viscosity_ <= 0.0) return dt;
+  return std::min(dt, settings_.cfl * h * h / (2.0 * Dim * max_kinematic_viscosity_));
 }
 
 template <int Dim>
@@ -429,6 +436,8 @@ void MpmSolver<Dim>::step(double dt) {
     j2_return_map<Dim>(materials_[particles_.material[p]], particles_.F[p],
                        particles_.plastic_strain[p]);
     update_stress(p);
+    const double eta = materials_[particles_.material[p]].viscosity;
+    if (eta > 0.0) sigma_[p] += eta * (grad_v + grad_v.transpose());
     if (!sigma_[p].allFinite()) failure.record(p, "NaN stress");
   }
   if (failure.failed()) fail(failure.particle, failure.cause);

@@ -121,6 +121,7 @@ class MpmSolver {
   // the last one's image stands, as in a serial loop, whatever the thread count).
   std::vector<uint8_t> ghost_writes_;
   double max_wave_speed_ = 0.0;
+  double max_kinematic_viscosity_ = 0.0;  // max η / ρ over the materials, m²/s
   double time_ = 0.0;
   int64_t steps_ = 0;
   int64_t shared_node_steps_ = 0;
