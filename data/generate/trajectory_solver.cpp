@@ -127,6 +127,25 @@ Trajectory solve(const FamilyConfig& family, const SampledScene& draw, const mpm
 
 }  // namespace
 
+StoredDraw stored_draw(const Dataset& data, int64_t t, const std::string& family) {
+  const std::string where = data.location() + ": trajectory " + std::to_string(t);
+  const Json p = parse_json_text(data.parameters(t), where + ": parameters");
+  StoredDraw d;
+  try {
+    d.run_seed = p.at("run_seed").get<int64_t>();
+    d.index = p.at("index").get<int64_t>();
+    d.attempt = p.at("attempt").get<int>();
+  } catch (const Json::exception& e) {
+    throw InputError(where + ": parameters lack the draw (run_seed, index, attempt): " +
+                     truncate_for_message(e.what(), 120));
+  }
+  const Json drawn_family = p.value("family", Json(""));
+  if (!drawn_family.is_string() || drawn_family.get<std::string>() != family)
+    throw InputError(where + ": family " + describe_json(drawn_family) + ", generate.json's is " +
+                     family);
+  return d;
+}
+
 Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
                       const std::string& work_prefix, const FrameHook& hook) {
   const SingleThreadedSolve single;

@@ -28,6 +28,16 @@ using FrameHook =
 Trajectory solve_draw(const FamilyConfig& family, int64_t seed, int64_t index, int attempt,
                       const std::string& work_prefix, const FrameHook& hook = {});
 
+// The draw a generated trajectory came from: its parameters' run seed, global index and attempt
+// (solve_draw(family, run_seed, index, attempt, ...) solves it again).
+struct StoredDraw {
+  int64_t run_seed = 0, index = 0;
+  int attempt = 0;
+};
+// Trajectory `t` of a bsms generate dataset, checked to come from family `family`; InputError
+// naming the file and trajectory when its parameters lack the draw or name another family.
+StoredDraw stored_draw(const Dataset& data, int64_t t, const std::string& family);
+
 // One trajectory: draws the scene of global index `index` (redrawing unstable draws), solves it
 // single-threaded and returns it with its node types, bodies and fields. `work_prefix` names
 // scratch files (union geometry). `on_redraw` is told about each unstable draw.

@@ -625,19 +625,10 @@ SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   for (int64_t t = 0; t < count; ++t) {
     StoredFrames& st = stored[static_cast<size_t>(t)];
     const std::string where = data.location() + ": trajectory " + std::to_string(t);
-    const Json p = parse_json_text(data.parameters(t), where + ": parameters");
-    try {
-      st.run_seed = p.at("run_seed").get<int64_t>();
-      st.index = p.at("index").get<int64_t>();
-      st.attempt = p.at("attempt").get<int>();
-    } catch (const Json::exception& e) {
-      throw InputError(where + ": parameters lack the draw (run_seed, index, attempt): " +
-                       truncate_for_message(e.what(), 120));
-    }
-    const Json drawn_family = p.value("family", Json(""));
-    if (!drawn_family.is_string() || drawn_family.get<std::string>() != family.family)
-      throw InputError(where + ": family " + describe_json(drawn_family) + ", generate.json's is " +
-                       family.family);
+    const generate::StoredDraw draw = generate::stored_draw(data, t, family.family);
+    st.run_seed = draw.run_seed;
+    st.index = draw.index;
+    st.attempt = draw.attempt;
     st.frames = data.num_frames(t);
     if (st.frames < 3) throw InputError(where + ": fewer than 3 frames");
     if (st.frames != family.frames)
