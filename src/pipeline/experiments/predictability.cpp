@@ -128,9 +128,7 @@ struct Point {
 };
 
 // One trajectory as stored: its draw and its frames.
-struct StoredTrajectory {
-  int64_t run_seed = 0, index = 0;
-  int attempt = 0;
+struct StoredTrajectory : generate::StoredDraw {
   std::vector<float> world_pos;  // [F, N, dim]
   int64_t frames = 0;
   TrajectoryMesh mesh;
@@ -450,10 +448,7 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   for (int64_t t = 0; t < count; ++t) {
     StoredTrajectory& st = stored[static_cast<size_t>(t)];
     const std::string where = data.location() + ": trajectory " + std::to_string(t);
-    const generate::StoredDraw draw = generate::stored_draw(data, t, family.family);
-    st.run_seed = draw.run_seed;
-    st.index = draw.index;
-    st.attempt = draw.attempt;
+    static_cast<generate::StoredDraw&>(st) = generate::stored_draw(data, t, family.family);
     st.frames = data.num_frames(t);
     if (st.frames < 3) throw InputError(where + ": fewer than 3 frames");
     st.world_pos = data.read(t, "world_pos", 0, st.frames);

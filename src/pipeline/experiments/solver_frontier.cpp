@@ -42,9 +42,7 @@ bool setting_name_ok(const std::string& name) {
 }
 
 // One trajectory as stored: its draw and its frames.
-struct StoredFrames {
-  int64_t run_seed = 0, index = 0;
-  int attempt = 0;
+struct StoredFrames : generate::StoredDraw {
   int64_t frames = 0;
   std::vector<float> world_pos;  // [F, N, dim]
   TrajectoryMesh mesh;
@@ -625,10 +623,7 @@ SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   for (int64_t t = 0; t < count; ++t) {
     StoredFrames& st = stored[static_cast<size_t>(t)];
     const std::string where = data.location() + ": trajectory " + std::to_string(t);
-    const generate::StoredDraw draw = generate::stored_draw(data, t, family.family);
-    st.run_seed = draw.run_seed;
-    st.index = draw.index;
-    st.attempt = draw.attempt;
+    static_cast<generate::StoredDraw&>(st) = generate::stored_draw(data, t, family.family);
     st.frames = data.num_frames(t);
     if (st.frames < 3) throw InputError(where + ": fewer than 3 frames");
     if (st.frames != family.frames)
