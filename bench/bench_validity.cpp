@@ -3,6 +3,9 @@
 // 6^3 x 6 tetrahedra (2,744 nodes, 10,368 cells) or 4x3 squares of 15^2 x 2 triangles (3,072
 // nodes, 5,400 cells), jittered and pressed 5 % into their neighbours; "stretched": one node
 // flung 20 sizes away (large cells, a coarser grid).
+// Projection (core/physical_projection.hpp) of the same pressed scenes back apart, walls, cells and
+// contact, rest = the bodies 1.05 apart; "Apart": a frame with nothing to correct (the cost of
+// checking every constraint once).
 // Run: build/bench/bench_validity --benchmark_repetitions=10 --benchmark_report_aggregates_only
 #include <benchmark/benchmark.h>
 
@@ -12,6 +15,7 @@
 #include <vector>
 
 #include "core/mesh.hpp"
+#include "core/physical_projection.hpp"
 #include "core/physical_validity.hpp"
 
 namespace {
@@ -146,12 +150,51 @@ void BM_Validity2D(benchmark::State& state) {
   run(state, pressed_bodies(2, {4, 3}, 15, false));
 }
 
+void project(benchmark::State& state, int dim, const std::vector<int>& per_axis, int n,
+             float pitch) {
+  const Frame rest = pressed_bodies(dim, per_axis, n, false, 1.05f);
+  const Frame f = pressed_bodies(dim, per_axis, n, false, pitch);
+  const int64_t nodes = static_cast<int64_t>(f.body.size());
+  const bsms::PhysicalProjection projection(
+      dim, f.cells, f.body, nodes, rest.x.data(),
+      BoxWalls{std::vector<double>(static_cast<size_t>(dim), 0.0),
+               std::vector<double>(static_cast<size_t>(dim), 4.0)},
+      bsms::parse_projection("all"));
+  bsms::ProjectionCounts counts;
+  std::vector<float> x;
+  for (auto _ : state) {
+    x = f.x;
+    counts = projection.project(x.data());
+    benchmark::DoNotOptimize(x.data());
+  }
+  state.counters["nodes"] = static_cast<double>(nodes);
+  state.counters["passes"] = counts.passes;
+  state.counters["pushed"] = static_cast<double>(counts.nodes_pushed_out);
+  state.counters["converged"] = counts.converged;
+}
+void BM_Projection3D(benchmark::State& state) {
+  project(state, 3, {2, 2, 2}, 6, 0.95f);
+}
+void BM_Projection3DApart(benchmark::State& state) {
+  project(state, 3, {2, 2, 2}, 6, 1.05f);
+}
+void BM_Projection2D(benchmark::State& state) {
+  project(state, 2, {4, 3}, 15, 0.95f);
+}
+void BM_Projection2DApart(benchmark::State& state) {
+  project(state, 2, {4, 3}, 15, 1.05f);
+}
+
 BENCHMARK(BM_Validity3D)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Validity3DTouching)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Validity3DApart)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Validity3DGmsh)->Arg(950)->Arg(995)->Arg(1050)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Validity3DStretched)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Validity2D)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Projection3D)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Projection3DApart)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Projection2D)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Projection2DApart)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

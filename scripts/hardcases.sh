@@ -5,7 +5,9 @@
 #      against a proximity-based coarsening (thesis Fig. 4.6);
 #   2. zero-shot inference on meshes at least 4x larger than any training mesh;
 #   3. seeding sensitivity at test time: MinAve, CloseCenter, random (thesis Table 4.8);
-#   4. long rollouts over 10x the training horizon, and stability on hard scenes.
+#   4. long rollouts over 10x the training horizon, and stability on hard scenes, plain and with
+#      every predicted step projected onto the walls, cell and contact constraints
+#      (--project all).
 # Experiments 2-4 use the BSMS-GNN and MeshGraphNets runs MODELS_DIR/bsms and MODELS_DIR/mgn
 # (default runs/demo, the demo's; runs/long after the long recipe). When a folder named demo
 # lacks them the demo runs first; any other folder without them is exit 2.
@@ -70,6 +72,10 @@ generate data_hard 303 "$count" --set 'sample.speed=[1.0,1.5]' \
   --set 'sample.material.youngs_modulus=[300.0,600.0]'
 "$bsms" experiment long-rollout "${runs[@]}" --data "$out_dir/data_long" \
   --hard "$out_dir/data_hard" --out "$out_dir/long_rollout" --threads "$threads"
+stage "4b. the same, every predicted step projected (walls, cells, contact)"
+"$bsms" experiment long-rollout "${runs[@]}" --data "$out_dir/data_long" \
+  --hard "$out_dir/data_hard" --out "$out_dir/long_rollout_projected" --threads "$threads" \
+  --project all
 
 stage "report"
 {
@@ -79,7 +85,7 @@ stage "report"
   echo "Models: \`$models/bsms\` (BSMS-GNN) and \`$models/mgn\` (MeshGraphNets)."
   echo
   for section in heat_sticks/heat_sticks zero_shot/zero_shot seeding/seeding \
-    long_rollout/long_rollout; do
+    long_rollout/long_rollout long_rollout_projected/long_rollout; do
     dir=${section%%/*}
     # Section images are relative to their own folder.
     sed "s#](plots/#](${dir}/plots/#g" "$out_dir/$section.md"

@@ -2,9 +2,9 @@
 # Stiffness sweep: where a learned simulator pays off against the solver that made its data. One
 # family generated at several Young's moduli (everything else and the seed unchanged), BSMS-GNN
 # trained on each for the same wall-clock budget, rolled out on its test split (plain and with
-# --project-walls), and one table with, per E: the solver's ms per frame and the draws it lost to
-# instability, the model's ms per step, the speed-up, RMSE-all against constant velocity, inverted
-# cells, nodes outside the walls and the overlap between bodies (model / truth). The solver's cost
+# --project all: walls, cells and contact held after each step), and one table with, per E: the
+# solver's ms per frame and the draws it lost to instability, the model's ms per step, the
+# speed-up, RMSE-all against constant velocity, inverted cells, nodes outside the walls and the overlap between bodies (model / truth). The solver's cost
 # grows with sqrt(E) (its time step follows the wave speed); the model takes one step per frame.
 # Usage: scripts/stiffness.sh BUILD_DIR OUT_DIR   (environment: STIFF_FAMILY (disks2d or bodies3d;
 # default disks2d), STIFF_E (moduli in Pa, default "1400 14000 140000 1400000" in 2-D and
@@ -49,7 +49,7 @@ for e in $moduli; do
   point=$out_dir/E$e
   run=$point/bsms-E$e
   runs+=("$run")
-  if [[ -f $run/rollout_walls/metrics.json ]]; then continue; fi  # finished earlier
+  if [[ -f $run/rollout_walls+cells+contact/metrics.json ]]; then continue; fi  # finished earlier
   echo "== E = $e Pa: generate, preprocess, train ${seconds} s, roll out"
   rm -rf "$point"
   mkdir -p "$point"
@@ -60,7 +60,7 @@ for e in $moduli; do
   "$bsms" train "$config" --out "$run" --threads "$threads" --set "data=$point/data" \
     --set "time_budget_s=$seconds" --set steps=1000000 --set valid_every=500
   "$bsms" rollout "$run" --split test --threads "$threads"
-  "$bsms" rollout "$run" --split test --threads "$threads" --project-walls
+  "$bsms" rollout "$run" --split test --threads "$threads" --project all
 done
 
 # The table: one row per modulus, figures from each run's metrics.json.
@@ -73,17 +73,17 @@ table=$out_dir/stiffness.md
   echo "RMSE-all in m; ratio: RMSE-all / constant velocity (lower is better, 1 = no better than"
   echo "extrapolating the velocity). Validity: worst step; overlap as a fraction of the bodies' cells."
   echo
-  echo "| E (Pa) | solver ms/frame | draws redrawn | model ms/step | speed-up | RMSE-all | const. velocity | ratio | inverted (max) | outside walls (max, m) | overlap model / truth | with --project-walls: ratio, outside (m) |"
+  echo "| E (Pa) | solver ms/frame | draws redrawn | model ms/step | speed-up | RMSE-all | const. velocity | ratio | inverted (max) | outside walls (max, m) | overlap model / truth | with --project all: ratio, inverted (max), overlap model / truth, ms/step |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
   for e in $moduli; do
     point=$out_dir/E$e
     m=$point/bsms-E$e/rollout/metrics.json
-    w=$point/bsms-E$e/rollout_walls/metrics.json
+    w=$point/bsms-E$e/rollout_walls+cells+contact/metrics.json
     redrawn=$(sed -n 's/.* \([0-9][0-9]*\) unstable draws replaced.*/\1/p' "$point/generate.log" | tail -1)
     jq -r --arg e "$e" --arg redrawn "${redrawn:-?}" --slurpfile w "$w" '
       def f(p): if . == null then "n/a" else (. * pow(10; p) | round / pow(10; p) | tostring) end;
       def e3: if . == null then "n/a" else (. * 1e3 | round / 1e3 | tostring) end;
-      "| \($e) | \(.solver_ms_per_frame | f(1)) | \($redrawn) | \(.infer_ms_per_step | f(2)) | \(.speedup_vs_solver | f(2)) | \(.rmse_all.world_pos | f(4)) | \(.rmse_all_constant_velocity | f(4)) | \(.rmse_all.world_pos / .rmse_all_constant_velocity | e3) | \(.inverted_cells_max * 100 | f(2)) % | \(.validity.model.outside_walls.max | f(4)) | \(.validity.model.overlap.max | f(5)) / \(.validity.truth.overlap.max | f(5)) | \($w[0].rmse_all.world_pos / $w[0].rmse_all_constant_velocity | e3), \($w[0].validity.model.outside_walls.max | f(4)) |"' "$m"
+      "| \($e) | \(.solver_ms_per_frame | f(1)) | \($redrawn) | \(.infer_ms_per_step | f(2)) | \(.speedup_vs_solver | f(2)) | \(.rmse_all.world_pos | f(4)) | \(.rmse_all_constant_velocity | f(4)) | \(.rmse_all.world_pos / .rmse_all_constant_velocity | e3) | \(.inverted_cells_max * 100 | f(2)) % | \(.validity.model.outside_walls.max | f(4)) | \(.validity.model.overlap.max | f(5)) / \(.validity.truth.overlap.max | f(5)) | \($w[0].rmse_all.world_pos / $w[0].rmse_all_constant_velocity | e3), \($w[0].inverted_cells_max * 100 | f(2)) %, \($w[0].validity.model.overlap.max | f(5)) / \($w[0].validity.truth.overlap.max | f(5)), \($w[0].infer_ms_per_step | f(2)) |"' "$m"
   done
 } >"$table.tmp"
 mv "$table.tmp" "$table"

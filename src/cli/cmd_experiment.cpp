@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "cli/command.hpp"
+#include "core/physical_projection.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/experiments/heat_sticks.hpp"
 #include "pipeline/experiments/predictability.hpp"
@@ -120,6 +121,7 @@ BSMS_COMMAND(
                       "dataset folder with trajectories >= 10x the training length")
             ->required();
         l->add_option("--hard", *hard, "dataset folder with hard scenes (optional)");
+        bsms::cli::add_projection_option(*l, r->projection);
         l->callback([r, data, hard] {
           const bsms::cli::RemoveOnFailure cleanup(r->out);
           bsms::long_rollout_experiment(*r, *data, *hard);

@@ -1,6 +1,7 @@
 // bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
-// [--steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize] [--project-walls] [--threads T]
+// [--steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize] [--project LIST] [--threads T]
 #include "cli/command.hpp"
+#include "core/physical_projection.hpp"
 #include "pipeline/rollout.hpp"
 #include "pipeline/rollout_outputs.hpp"
 #include "preprocess/multilevel_graph.hpp"
@@ -36,9 +37,7 @@ BSMS_COMMAND(
                    "average each prediction over the symmetries of the data's box scene "
                    "(reflections, equal-side axis swaps; default output "
                    "RUN/rollout_symmetric)");
-      sub.add_flag("--project-walls", r->project_walls,
-                   "after each step put nodes beyond a wall of the data's box scene back on it "
-                   "(default output RUN/rollout_walls)");
+      bsms::cli::add_projection_option(sub, r->projection);
       bsms::cli::add_threads_option(sub, r->threads);
       sub.footer(
           "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"

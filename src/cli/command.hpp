@@ -7,6 +7,10 @@
 #include <string>
 #include <vector>
 
+namespace bsms {
+struct ProjectionOptions;
+}
+
 namespace bsms::cli {
 
 struct Command {
@@ -28,6 +32,8 @@ std::vector<std::string>& program_arguments();
 // Options most subcommands share.
 void add_threads_option(CLI::App& sub, int& threads);
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets);
+// --project LIST: constraints projected after each predicted step (core/physical_projection.hpp).
+void add_projection_option(CLI::App& sub, ProjectionOptions& projection);
 
 // Options of the subcommands that read a mesh file the user names, which may be a gmsh script
 // (preprocess --mesh, scenes' mesh bodies and backgrounds in simulate): --geo-time-limit,

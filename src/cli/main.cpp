@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "core/gmsh_worker.hpp"
 #include "core/one_line.hpp"
+#include "core/physical_projection.hpp"
 #include "core/runtime.hpp"
 
 namespace bsms::cli {
@@ -39,6 +40,22 @@ void add_threads_option(CLI::App& sub, int& threads) {
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets) {
   sub.add_option("--set", sets, "override a config value: key.path=value (repeatable)")
       ->type_name("KEY=VALUE");
+}
+
+void add_projection_option(CLI::App& sub, ProjectionOptions& projection) {
+  sub.add_option_function<std::string>(
+         "--project",
+         [&projection](const std::string& list) {
+           try {
+             projection = parse_projection(list);
+           } catch (const std::invalid_argument& e) {
+             throw CLI::ValidationError("--project", e.what());
+           }
+         },
+         "constraints projected after each predicted step: walls (nodes inside the box), cells "
+         "(no cell turned inside out), contact (no node inside another body), or all; "
+         "comma-separated")
+      ->type_name("LIST");
 }
 
 namespace {

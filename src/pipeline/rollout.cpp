@@ -153,19 +153,6 @@ RolloutModel open_member(const std::string& run, const LagrangianSpec& first, co
   return open_model(folder, data, data_dir, seeding);
 }
 
-// Each coordinate clamped to its axis' walled interval (a side without a wall is open).
-torch::Tensor project_into_walls(const torch::Tensor& x, const BoxWalls& walls) {
-  std::vector<torch::Tensor> axes;
-  for (int64_t a = 0; a < x.size(1); ++a) {
-    const bool lo = !std::isnan(walls.lo[a]), hi = !std::isnan(walls.hi[a]);
-    torch::Tensor c = x.select(1, a);
-    if (lo) c = c.clamp_min(walls.lo[a]);
-    if (hi) c = c.clamp_max(walls.hi[a]);
-    axes.push_back(c);
-  }
-  return torch::stack(axes, 1);
-}
-
 }  // namespace
 
 RolloutMetrics rollout(const RolloutRequest& request) {
@@ -180,8 +167,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       throw InputError(config_file + ": an Eulerian run; --ensemble averages Lagrangian runs");
     if (request.symmetrize)
       throw InputError(config_file + ": an Eulerian run; --symmetrize maps Lagrangian states");
-    if (request.project_walls)
-      throw InputError(config_file + ": an Eulerian run; --project-walls moves Lagrangian nodes");
+    if (!projection_names(request.projection).empty())
+      throw InputError(config_file + ": an Eulerian run; --project moves Lagrangian nodes");
     return rollout_eulerian(request, config, eulerian_spec_from_json(features, config_file), levels,
                             folder.stats);
   }
@@ -243,9 +230,18 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   // Physical validity of the predicted and the true frames: overlap between bodies (cells of the
   // full dimension) and nodes outside the walls (box scenes with walls).
   const BoxWalls walls = scene_walls(data.scene(), spec.dim);
-  if (request.project_walls && walls.empty())
+  const ProjectionOptions& projection = request.projection;
+  if (projection.walls && walls.empty())
     throw InputError(data.location() +
-                     ": --project-walls needs a box scene with walls (its scene has none)");
+                     ": --project walls needs a box scene with walls (its scene has none)");
+  if ((projection.cells || projection.contact) &&
+      !(data.mesh(0).cell_size == spec.dim + 1 && spec.dim >= 2 && spec.dim <= 3))
+    throw InputError(data.location() +
+                     ": --project cells and contact need triangles (2-D) or tetrahedra (3-D); its "
+                     "cells have " +
+                     std::to_string(data.mesh(0).cell_size) + " nodes in " +
+                     std::to_string(spec.dim) + "-D");
+  ProjectionTally projection_tally;
   ValidityTally validity(data.mesh(0).cell_size == spec.dim + 1 && spec.dim >= 2 && spec.dim <= 3,
                          !walls.empty() && spec.dim >= 2 && spec.dim <= 3);
   rollout_outputs::RolloutTally tally;
@@ -273,6 +269,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                            : torch::zeros({0, spec.dim + 1}, torch::kInt64);
     const auto reference_sign = signed_measures(cells, truth[0], spec.dim).sign();
     const std::optional<PhysicalValidity> frame_validity = validity_for_mesh(mesh, spec.dim, walls);
+    // Made at the first step, when the batch tells which nodes the model moves (the others are
+    // driven by the scene and stay where the truth has them).
+    std::optional<PhysicalProjection> projector;
     validity.start_trajectory();
     std::vector<TrajectoryMesh> mapped_meshes;  // the mesh under each symmetry after the identity
     for (size_t k = 1; k < symmetries.size(); ++k)
@@ -287,6 +286,14 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       for (int64_t k = f - 2; k >= 0 && k > f - 1 - spec.history; --k)
         state.older.push_back(seen(k));
       Batch batch = adapter.make_batch({state});
+      if (!projector && !projection_names(projection).empty()) {
+        const auto rest = truth[0].contiguous();
+        const auto movable = batch.mask.to(torch::kUInt8).contiguous();
+        projector.emplace(
+            spec.dim, simplices ? mesh.cells : std::vector<int32_t>{}, mesh.body_id, n,
+            rest.data_ptr<float>(), projection.walls ? walls : BoxWalls{}, projection,
+            std::vector<uint8_t>(movable.data_ptr<uint8_t>(), movable.data_ptr<uint8_t>() + n));
+      }
       // One model's acceleration for `own` (the state through that model's graphs; `plain`: its
       // batch, when built) or, with --symmetrize, the mean over `own` mapped by each symmetry
       // (one block-diagonal batch), each prediction mapped back.
@@ -320,7 +327,10 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       }
       if (!members.empty()) accel = accel / static_cast<double>(members.size() + 1);
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
-      if (request.project_walls) next = project_into_walls(next, walls);
+      if (projector) {
+        next = next.contiguous();
+        projection_tally.add(projector->project(next.data_ptr<float>()), n);
+      }
       tally.infer_ms.push_back(clock.milliseconds());
       if (!torch::isfinite(next).all().item<bool>()) {
         tally.diverged.push_back({t, f + 1});
@@ -394,7 +404,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.num_trajectories = count;
   metrics.one_step = request.one_step;
   metrics.symmetries = symmetries.empty() ? 1 : static_cast<int>(symmetries.size());
-  metrics.project_walls = request.project_walls;
+  metrics.projection = projection_tally.metrics(projection_names(projection));
   metrics.rmse_1 = rmse_over(curves, 1);
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/physical_projection.hpp"
 #include "pipeline/rollout_metrics.hpp"
 
 namespace bsms {
@@ -33,11 +34,11 @@ struct RolloutRequest {
   // and the gravity), each state mapped, predicted and the acceleration mapped back, so the
   // averaged model is exactly equivariant to them. Default output RUN/rollout[...]_symmetric.
   bool symmetrize = false;
-  // A constraint after each predicted step: nodes beyond a wall of the data's box scene are put
-  // back on it (each coordinate clamped to the walled interval), which is what slip and sticky
-  // walls do to the solver's particles. The next step's velocity is then the clamped motion.
-  // Default output RUN/rollout[...]_walls.
-  bool project_walls = false;
+  // Constraints projected after each predicted step (core/physical_projection.hpp): nodes
+  // inside the walls of the data's box scene, cells that keep their orientation, bodies that do
+  // not pass into one another; the next step sees the projected state. Default output
+  // RUN/rollout[...]_<names joined by +>, e.g. RUN/rollout_walls+cells+contact.
+  ProjectionOptions projection;
 };
 
 // Returns the metrics written to RUN/rollout/metrics.json (docs/design.md "Runs").

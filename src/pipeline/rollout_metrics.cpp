@@ -182,6 +182,30 @@ std::optional<PhysicalValidityMetrics> validity_from_json(JsonObjectReader& pare
   return v;
 }
 
+ProjectionMetrics projection_from_json(JsonObjectReader& parent, const std::string& key) {
+  const Json& value = parent.raw(key);
+  require(value.is_object(), parent.context(key),
+          "an object {constraints, steps, nodes_clamped_per_step, ...}");
+  JsonObjectReader r(value, parent.context(key));
+  ProjectionMetrics p;
+  p.constraints = r.get<std::vector<std::string>>("constraints");
+  for (const std::string& name : p.constraints)
+    require(name == "walls" || name == "cells" || name == "contact", r.context("constraints"),
+            "a list of \"walls\", \"cells\" and \"contact\"");
+  p.steps = read_int_at_least<int64_t>(r, "steps", 0);
+  for (const auto& [name, field] :
+       {std::pair{"nodes_clamped_per_step", &p.nodes_clamped_per_step},
+        std::pair{"cells_restored_per_step", &p.cells_restored_per_step},
+        std::pair{"nodes_pushed_out_per_step", &p.nodes_pushed_out_per_step},
+        std::pair{"passes_per_step", &p.passes_per_step}, std::pair{"shift_rms", &p.shift_rms}}) {
+    *field = r.get<double>(name);
+    require(*field >= 0, r.context(name), "a number >= 0");
+  }
+  p.unconverged_steps = read_int_at_least<int64_t>(r, "unconverged_steps", 0);
+  r.finish();
+  return p;
+}
+
 std::vector<DivergedTrajectory> diverged_from_json(JsonObjectReader& parent) {
   const Json& list = parent.raw("diverged");
   require(list.is_array(), parent.context("diverged"), "an array of {trajectory, frame}");
@@ -266,7 +290,17 @@ Json to_json(const RolloutMetrics& m) {
   j["num_trajectories"] = m.num_trajectories;
   if (m.one_step) j["one_step"] = true;
   if (m.symmetries > 1) j["symmetries"] = m.symmetries;
-  if (m.project_walls) j["project_walls"] = true;
+  if (m.projection) {
+    const ProjectionMetrics& p = *m.projection;
+    j["projection"] = {{"constraints", p.constraints},
+                       {"steps", p.steps},
+                       {"nodes_clamped_per_step", p.nodes_clamped_per_step},
+                       {"cells_restored_per_step", p.cells_restored_per_step},
+                       {"nodes_pushed_out_per_step", p.nodes_pushed_out_per_step},
+                       {"passes_per_step", p.passes_per_step},
+                       {"shift_rms", p.shift_rms},
+                       {"unconverged_steps", p.unconverged_steps}};
+  }
   j["rmse_1"] = to_json(m.rmse_1);
   j["rmse_50"] = to_json(m.rmse_50);
   j["rmse_all"] = to_json(m.rmse_all);
@@ -335,7 +369,7 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.num_trajectories = read_int_at_least<int64_t>(r, "num_trajectories", 0);
   m.one_step = r.opt<bool>("one_step", false);
   if (r.has("symmetries")) m.symmetries = read_int_at_least<int>(r, "symmetries", 1);
-  if (r.has("project_walls")) m.project_walls = r.get<bool>("project_walls");
+  if (r.has("projection")) m.projection = projection_from_json(r, "projection");
   m.rmse_1 = field_rmse_from_json(r, "rmse_1");
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");

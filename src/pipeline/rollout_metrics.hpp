@@ -79,6 +79,18 @@ struct PhysicalValidityMetrics {
   ValidityMeasures model, truth;
 };
 
+// Constraints projected after each predicted step (bsms rollout --project,
+// core/physical_projection.hpp; "projection"): which, and what they corrected, per predicted step
+// on average over the rollout.
+struct ProjectionMetrics {
+  std::vector<std::string> constraints;  // "walls", "cells", "contact" in that order
+  int64_t steps = 0;
+  double nodes_clamped_per_step = 0.0, cells_restored_per_step = 0.0,
+         nodes_pushed_out_per_step = 0.0, passes_per_step = 0.0;
+  double shift_rms = 0.0;  // RMS over nodes and steps of how far the projection moved a node (m)
+  int64_t unconverged_steps = 0;  // steps left with a violated constraint after the pass limit
+};
+
 struct DivergedTrajectory {
   int64_t trajectory = 0;
   int64_t frame = 0;  // the first frame with a non-finite prediction
@@ -97,9 +109,8 @@ struct RolloutMetrics {
   // Symmetries each prediction was averaged over (bsms rollout --symmetrize; "symmetries",
   // written when > 1); 1: the plain model.
   int symmetries = 1;
-  // Nodes beyond a wall put back on it after each step (bsms rollout --project-walls;
-  // "project_walls", written when true).
-  bool project_walls = false;
+  // Constraints projected after each step (bsms rollout --project); none: the plain model.
+  std::optional<ProjectionMetrics> projection;
   int levels = 1;
   int threads = 0;
   std::string cpu;  // cpu_model_name() of the machine that timed it ("cpu"; older files: "")

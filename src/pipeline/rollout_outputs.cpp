@@ -16,10 +16,12 @@ namespace fs = std::filesystem;
 
 fs::path out_dir(const RolloutRequest& request) {
   if (!request.out.empty()) return fs::path(request.out);
+  std::string projected;
+  for (const std::string& name : projection_names(request.projection))
+    projected += (projected.empty() ? "_" : "+") + name;
   return fs::path(request.run) / ((request.one_step ? "rollout_one_step" : "rollout") +
                                   std::string(request.ensemble.empty() ? "" : "_ensemble") +
-                                  std::string(request.symmetrize ? "_symmetric" : "") +
-                                  std::string(request.project_walls ? "_walls" : ""));
+                                  std::string(request.symmetrize ? "_symmetric" : "") + projected);
 }
 
 std::string prediction_file(const fs::path& out_dir, const std::string& split,

@@ -86,4 +86,33 @@ std::optional<PhysicalValidityMetrics> ValidityTally::metrics() const {
   return PhysicalValidityMetrics{measures(model_), measures(truth_)};
 }
 
+void ProjectionTally::add(const ProjectionCounts& counts, int64_t num_nodes) {
+  ++steps_;
+  node_steps_ += num_nodes;
+  clamped_ += static_cast<double>(counts.nodes_clamped);
+  restored_ += static_cast<double>(counts.cells_restored);
+  pushed_ += static_cast<double>(counts.nodes_pushed_out);
+  passes_ += counts.passes;
+  shift_sq_ += counts.shift_sq;
+  if (!counts.converged) ++unconverged_;
+}
+
+std::optional<ProjectionMetrics> ProjectionTally::metrics(
+    std::vector<std::string> constraints) const {
+  if (constraints.empty()) return std::nullopt;
+  ProjectionMetrics m;
+  m.constraints = std::move(constraints);
+  m.steps = steps_;
+  m.unconverged_steps = unconverged_;
+  if (steps_ > 0) {
+    const double per = 1.0 / static_cast<double>(steps_);
+    m.nodes_clamped_per_step = clamped_ * per;
+    m.cells_restored_per_step = restored_ * per;
+    m.nodes_pushed_out_per_step = pushed_ * per;
+    m.passes_per_step = passes_ * per;
+  }
+  if (node_steps_ > 0) m.shift_rms = std::sqrt(shift_sq_ / static_cast<double>(node_steps_));
+  return m;
+}
+
 }  // namespace bsms

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/physical_projection.hpp"
 #include "core/physical_validity.hpp"
 #include "data/dataset/dataset.hpp"
 #include "pipeline/rollout_metrics.hpp"
@@ -47,6 +48,19 @@ class ValidityTally {
   ValidityMeasures measures(const Side& side) const;
   bool cells_, walls_;
   Side model_, truth_;
+};
+
+// What the constraints projected after each predicted step corrected, over a rollout.
+class ProjectionTally {
+ public:
+  // The counts of one step's projection on a frame of `num_nodes` nodes.
+  void add(const ProjectionCounts& counts, int64_t num_nodes);
+  // None when `constraints` is empty (no projection).
+  std::optional<ProjectionMetrics> metrics(std::vector<std::string> constraints) const;
+
+ private:
+  int64_t steps_ = 0, node_steps_ = 0, unconverged_ = 0;
+  double clamped_ = 0, restored_ = 0, pushed_ = 0, passes_ = 0, shift_sq_ = 0;
 };
 
 }  // namespace bsms

@@ -134,8 +134,9 @@ TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
                InputError);
 }
 
-TEST_F(HardCasesTest, ProjectedWallsKeepEveryPredictedNodeInside) {
+TEST_F(HardCasesTest, ProjectionKeepsEveryPredictedNodeInsideAndEveryCellTheRightWayOut) {
   // The falling plate passes through a floor at y = 0.3 within the trajectory; the truth does too.
+  // Its two pinned corners (kinematic: the scene holds them, at y = 0 and 0.6) are not moved.
   const char* floor = R"({"scene": {"background": {"type": "box", "min": [-1, 0.3], "max": [2, 2]},
       "boundaries": [{"group": "bottom", "type": "slip"}]}})";
   write_split(dir_ / "floor", "test", 1, 40, 6, testing::dragged_plate, floor);
@@ -149,20 +150,35 @@ TEST_F(HardCasesTest, ProjectedWallsKeepEveryPredictedNodeInside) {
   ASSERT_TRUE(plain.validity && plain.validity->model.outside_walls);
   EXPECT_GT(plain.validity->truth.outside_walls->max, 0.01);
   EXPECT_GT(plain.validity->model.outside_walls->max, 0.01);
-  EXPECT_FALSE(plain.project_walls);
-  q.project_walls = true;
+  EXPECT_FALSE(plain.projection);
+  q.projection = parse_projection("walls");
   q.out.clear();
   const RolloutMetrics projected = rollout(q);
-  EXPECT_TRUE(projected.project_walls);
-  EXPECT_EQ(projected.validity->model.outside_walls->max, 0.0);
-  EXPECT_EQ(projected.validity->model.nodes_outside_walls->max, 0.0);
+  ASSERT_TRUE(projected.projection);
+  EXPECT_EQ(projected.projection->constraints, std::vector<std::string>{"walls"});
+  EXPECT_GT(projected.projection->nodes_clamped_per_step, 0.0);
+  EXPECT_GT(projected.projection->shift_rms, 0.0);
+  const double one_node = 1.0 / 49;  // the pinned corner 0.3 below the floor
+  EXPECT_GT(plain.validity->model.nodes_outside_walls->max, 1.5 * one_node);
+  EXPECT_NEAR(projected.validity->model.outside_walls->max, 0.3, 1e-6);
+  EXPECT_NEAR(projected.validity->model.nodes_outside_walls->max, one_node, 1e-9);
   // The truth is scored as it is; the default folder says what was done.
   EXPECT_EQ(projected.validity->truth.outside_walls->max, plain.validity->truth.outside_walls->max);
   const fs::path folder = dir_ / "run" / "rollout_walls";
   EXPECT_TRUE(fs::exists(folder / "metrics.json"));
-  EXPECT_TRUE(read_rollout_metrics((folder / "metrics.json").string()).project_walls);
+  const RolloutMetrics read = read_rollout_metrics((folder / "metrics.json").string());
+  ASSERT_TRUE(read.projection);
+  EXPECT_EQ(read.projection->steps, projected.projection->steps);
+  // Every constraint: cells turned inside out only where the projection says it could not hold
+  // them (a cell of the pinned corner below the floor can be left no room).
+  q.projection = parse_projection("all");
+  const RolloutMetrics all = rollout(q);
+  EXPECT_TRUE(all.inverted_cells_max == 0.0 || all.projection->unconverged_steps > 0);
+  EXPECT_NEAR(all.validity->model.nodes_outside_walls->max, one_node, 1e-9);
+  EXPECT_TRUE(fs::exists(dir_ / "run" / "rollout_walls+cells+contact" / "metrics.json"));
   // A scene without walls has nothing to project onto.
   q.data = (dir_ / "data").string();
+  q.projection = parse_projection("walls");
   EXPECT_THROW(rollout(q), InputError);
 }
 

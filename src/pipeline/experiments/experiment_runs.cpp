@@ -88,6 +88,7 @@ RolloutMetrics run_rollout(const HardCaseRequest& request, const RunInfo& run,
   r.max_trajectories = request.max_trajectories;
   r.threads = request.threads;
   r.quiet = request.quiet;
+  r.projection = request.projection;
   return rollout(r);
 }
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/config.hpp"
+#include "core/physical_projection.hpp"
 
 namespace bsms {
 
@@ -19,6 +20,8 @@ struct HardCaseRequest {
   int64_t max_trajectories = 0;  // 0: all of the split
   int threads = 0;
   bool quiet = false;
+  // Constraints projected after each predicted step of every rollout (bsms rollout --project).
+  ProjectionOptions projection;
 };
 
 // Rolls every run out on its own test split and on `data` (meshes at least 4x larger than any
