@@ -32,6 +32,9 @@ std::vector<std::string>& program_arguments();
 // Options most subcommands share.
 void add_threads_option(CLI::App& sub, int& threads);
 void add_set_option(CLI::App& sub, std::vector<std::string>& sets);
+// The one-line message for a command line whose first words name no subcommand where one is
+// required (e.g. "bsms trian"), walking nested subcommands; empty when they all exist.
+std::string unknown_subcommand(const CLI::App& app, const std::vector<std::string>& args);
 // --project LIST: constraints projected after each predicted step (core/physical_projection.hpp).
 void add_projection_option(CLI::App& sub, ProjectionOptions& projection);
 

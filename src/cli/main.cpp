@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "cli/command.hpp"
+#include "core/config.hpp"
 #include "core/error.hpp"
 #include "core/gmsh_worker.hpp"
 #include "core/one_line.hpp"
@@ -133,6 +134,54 @@ RemoveOnFailure::~RemoveOnFailure() {
   }
 }
 
+namespace {
+
+size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] != b[j - 1] ? 1 : 0)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+}  // namespace
+
+std::string unknown_subcommand(const CLI::App& app, const std::vector<std::string>& args) {
+  const CLI::App* at = &app;
+  std::string path = "bsms";
+  for (const std::string& word : args) {
+    const auto subs = at->get_subcommands([](const CLI::App*) { return true; });
+    if (subs.empty() || word.empty() || word[0] == '-') return "";
+    const CLI::App* next = nullptr;
+    std::string names, closest;
+    size_t best = std::string::npos;
+    for (const CLI::App* sub : subs) {
+      if (sub->get_name() == word) next = sub;
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+      const size_t d = edit_distance(word, sub->get_name());
+      if (d < best) {
+        best = d;
+        closest = sub->get_name();
+      }
+    }
+    if (!next) {
+      const bool near = best <= std::max<size_t>(2, word.size() / 3);
+      return path + ": unknown subcommand '" + truncate_for_message(word, 100) + "'" +
+             (near ? " (did you mean '" + closest + "'?)" : "") + "; expected one of: " + names;
+    }
+    at = next;
+    path += " " + word;
+  }
+  return "";
+}
+
 }  // namespace bsms::cli
 
 int main(int argc, char** argv) {
@@ -158,6 +207,13 @@ int main(int argc, char** argv) {
     command.setup(*sub);
   }
 
+  // CLI11 answers a misspelt subcommand with "A subcommand is required": name it instead.
+  const std::string unknown = bsms::cli::unknown_subcommand(
+      app, std::vector<std::string>(argv + std::min(argc, 1), argv + argc));
+  if (!unknown.empty()) {
+    std::cerr << bsms::one_line(unknown) << " (see --help)\n";
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
