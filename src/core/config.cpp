@@ -320,6 +320,7 @@ JsonObjectReader::JsonObjectReader(const Json& object, JsonContext context)
 }
 
 const Json& JsonObjectReader::raw(const std::string& key) {
+  ConfigKeyRecorder::record(context_, key);
   if (!object_.contains(key))
     throw InputError(context_.file + ": missing required key '" + context_.child(key).path + "'");
   used_.push_back(key);

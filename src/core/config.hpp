@@ -64,6 +64,34 @@ struct JsonContext {
   }
 };
 
+// Records the key path of every key a JsonObjectReader is asked about (get, opt, has, raw),
+// optional keys absent from the object included: what the parsers accept, learnt by running them.
+// A test installs one around a parse to check that docs/configs.md names every key; none is
+// installed otherwise, which costs one null check per key read. Not thread-safe: install it on the
+// thread that parses, with no other parse running.
+class ConfigKeyRecorder {
+ public:
+  struct Key {
+    std::string file;  // the reader's JsonContext::file
+    std::string path;  // dotted, list elements by index: "bodies.0.shape.type"
+  };
+  // Installs this recorder until it is destroyed (then the one installed before it is back).
+  ConfigKeyRecorder() : previous_(active_) { active_ = this; }
+  ~ConfigKeyRecorder() { active_ = previous_; }
+  ConfigKeyRecorder(const ConfigKeyRecorder&) = delete;
+  ConfigKeyRecorder& operator=(const ConfigKeyRecorder&) = delete;
+  const std::vector<Key>& keys() const { return keys_; }
+  // Records `key` of the object that `object` names, when a recorder is installed.
+  static void record(const JsonContext& object, const std::string& key) {
+    if (active_) active_->keys_.push_back({object.file, object.child(key).path});
+  }
+
+ private:
+  inline static ConfigKeyRecorder* active_ = nullptr;
+  ConfigKeyRecorder* previous_;
+  std::vector<Key> keys_;
+};
+
 // Reads one JSON object strictly: call get/opt for each key, then finish() rejects the rest.
 class JsonObjectReader {
  public:
@@ -73,7 +101,10 @@ class JsonObjectReader {
   T get(const std::string& key);  // required
   template <class T>
   T opt(const std::string& key, const T& fallback);
-  bool has(const std::string& key) const { return object_.contains(key); }
+  bool has(const std::string& key) const {
+    ConfigKeyRecorder::record(context_, key);
+    return object_.contains(key);
+  }
   const Json& raw(const std::string& key);  // required, any type; marks the key used
   JsonContext context(const std::string& key) const { return context_.child(key); }
   void finish() const;  // InputError on any key never read, listing the allowed keys

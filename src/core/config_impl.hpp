@@ -49,6 +49,7 @@ T JsonObjectReader::convert(const Json& value, const std::string& key) const {
 
 template <class T>
 T JsonObjectReader::get(const std::string& key) {
+  ConfigKeyRecorder::record(context_, key);
   if (!object_.contains(key))
     throw InputError(context_.file + ": missing required key '" + context_.child(key).path + "'");
   used_.push_back(key);
@@ -57,6 +58,7 @@ T JsonObjectReader::get(const std::string& key) {
 
 template <class T>
 T JsonObjectReader::opt(const std::string& key, const T& fallback) {
+  ConfigKeyRecorder::record(context_, key);
   used_.push_back(key);
   if (!object_.contains(key)) return fallback;
   return convert<T>(object_.at(key), key);

@@ -91,6 +91,37 @@ TEST(Config, ReaderRejectsUnknownMissingAndMistypedKeys) {
   EXPECT_EQ(range, "s.json: key 'material.E' must be > 0");
 }
 
+// The recorder sees every key a reader is asked about, read or merely looked for (absent optional
+// and missing required keys too), with its full path; a nested recorder hands back to the outer
+// one.
+TEST(Config, KeyRecorderRecordsEveryKeyAskedAbout) {
+  const Json j = Json::parse(R"({"E": 1.0, "list": [{"x": 2}], "name": "bar"})");
+  const auto paths = [](const ConfigKeyRecorder& r) {
+    std::vector<std::string> out;
+    for (const auto& k : r.keys()) out.push_back(k.file + ":" + k.path);
+    return out;
+  };
+  ConfigKeyRecorder outer;
+  {
+    ConfigKeyRecorder inner;
+    JsonObjectReader r(j, {"scene.json", "material"});
+    r.get<double>("E");
+    r.opt<double>("rho", 1.0);  // absent: still a key the parser accepts
+    (void)r.has("name");
+    const Json& list = r.raw("list");
+    JsonObjectReader element(list[0], r.context("list").child("0"));
+    element.get<int>("x");
+    EXPECT_THROW(r.get<double>("density"), InputError);  // asked for, though missing
+    const std::vector<std::string> expected = {
+        "scene.json:material.E",    "scene.json:material.rho",      "scene.json:material.name",
+        "scene.json:material.list", "scene.json:material.list.0.x", "scene.json:material.density"};
+    EXPECT_EQ(paths(inner), expected);
+  }
+  JsonObjectReader r(j, {"other.json", ""});
+  r.opt<std::string>("name", "");
+  EXPECT_EQ(paths(outer), std::vector<std::string>{"other.json:name"});
+}
+
 // Fuzzing regressions (fuzz/fuzz_config.cpp): a number JSON cannot hold and bytes that are not
 // UTF-8 are InputErrors (they escaped as nlohmann's out_of_range and type_error).
 TEST(Config, FuzzNumberOverflowAndNonUtf8AreInputErrors) {
