@@ -158,7 +158,7 @@ void project(benchmark::State& state, int dim, const std::vector<int>& per_axis,
   const bsms::PhysicalProjection projection(
       dim, f.cells, f.body, nodes, rest.x.data(),
       BoxWalls{std::vector<double>(static_cast<size_t>(dim), 0.0),
-               std::vector<double>(static_cast<size_t>(dim), 4.0)},
+               std::vector<double>(static_cast<size_t>(dim), 5.0)},
       bsms::parse_projection("all"));
   bsms::ProjectionCounts counts;
   std::vector<float> x;
@@ -170,6 +170,8 @@ void project(benchmark::State& state, int dim, const std::vector<int>& per_axis,
   state.counters["nodes"] = static_cast<double>(nodes);
   state.counters["passes"] = counts.passes;
   state.counters["pushed"] = static_cast<double>(counts.nodes_pushed_out);
+  state.counters["restored"] = static_cast<double>(counts.cells_restored);
+  state.counters["clamped"] = static_cast<double>(counts.nodes_clamped);
   state.counters["converged"] = counts.converged;
 }
 void BM_Projection3D(benchmark::State& state) {

@@ -1,4 +1,4 @@
-// libFuzzer target for the JSON configs (issue 13 item 7): the input is a config file's text,
+// libFuzzer target for the JSON configs: the input is a config file's text,
 // optionally followed by NUL-separated `--set key.path=value` overrides. The text is loaded with
 // load_json_file (from a file, as the CLI does), the overrides are applied with apply_override,
 // and the result is read as a train config (and its to_json round trip), as a scene (parse_scene

@@ -1,4 +1,4 @@
-// libFuzzer target for the dataset reader (issue 13 item 7): bsms HDF5 datasets and the public
+// libFuzzer target for the dataset reader: bsms HDF5 datasets and the public
 // HDF5 layouts (single file with one group per trajectory; a folder of {i}.h5 files). The input
 // is a mode byte (bit 0: folder layout) then an HDF5 structure program (h5_builder.hpp) written
 // with the HDF5 API into valid files; in folder mode a next-file op starts another {i}.h5. The

@@ -1,4 +1,4 @@
-// libFuzzer targets for the mesh intake after gmsh (issue 13 item 7). gmsh's file readers are
+// libFuzzer targets for the mesh intake after gmsh. gmsh's file readers are
 // not fuzzed (not bsms code); what bsms does with the arrays gmsh hands over is.
 //   fuzz_mesh: make_mesh (validate_mesh) on decoded point and cell arrays, any dimension and
 //     cell width, then find_bad_cells on what is accepted (the intake of dataset meshes).

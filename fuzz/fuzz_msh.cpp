@@ -1,4 +1,4 @@
-// libFuzzer target for the direct MSH reader (issue 15): the input is an MSH file image, parsed
+// libFuzzer target for the direct MSH reader: the input is an MSH file image, parsed
 // by read_msh_bytes (parse_msh + assemble_mesh) as read_mesh would parse a file. InputError
 // (MshNotHandled included) is the only allowed outcome of bad bytes; a mesh that is accepted must
 // have strictly ascending node tags and groups of valid, sorted node indices. Seeds (MSH 2.2 and

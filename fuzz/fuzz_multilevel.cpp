@@ -1,4 +1,4 @@
-// libFuzzer target for the multilevel graph file reader (issue 13 item 7). The input is an HDF5
+// libFuzzer target for the multilevel graph file reader. The input is an HDF5
 // structure program (h5_builder.hpp): groups, datasets, attributes and links written with the
 // HDF5 API into a valid file, which read_multilevel_graph then reads from disk. Mutating the
 // program reaches bsms' own checks (format, version, seeding, level count, num_nodes, dataset

@@ -1,4 +1,4 @@
-// libFuzzer target for the MeshGraphNets reader (issue 13 item 7): the input is a .tfrecord image
+// libFuzzer target for the MeshGraphNets reader: the input is a .tfrecord image
 // read under a fixed meta.json (CylinderFlow's fields), or, when it starts with '{', a meta.json
 // text. Every record is indexed, walked and decoded; InputError is the only allowed outcome of
 // bad bytes. Built with -DBSMS_FUZZ=ON and clang (`make fuzz`).

@@ -119,12 +119,12 @@ std::array<double, 3> nearest_on_triangle(const P3& p, const P3& a, const P3& b,
   return {1 - v - w, v, w};
 }
 
-// A uniform grid over the cells' bounding boxes: the cells whose box holds a point are those
-// listed in the point's grid cell plus the few stretched ones kept aside.
+// A uniform grid over the bounding boxes of simplices (`k` nodes each: cells or boundary facets):
+// the simplices whose box holds a point are those listed in the point's grid cell plus the few
+// stretched ones kept aside.
 class CellGrid {
  public:
-  CellGrid(const double* x, const std::vector<int32_t>& cells, int d) : d_(d) {
-    const int k = d + 1;
+  CellGrid(const double* x, const std::vector<int32_t>& cells, int k, int d) : d_(d) {
     const int64_t n = static_cast<int64_t>(cells.size()) / k;
     box_.resize(static_cast<size_t>(n * 2 * d));
     std::vector<double> extent(static_cast<size_t>(n));
@@ -227,6 +227,38 @@ class CellGrid {
     for (int64_t i = start_[flat]; i < start_[flat + 1]; ++i)
       if (holds(listed_[static_cast<size_t>(i)])) visit(listed_[static_cast<size_t>(i)]);
   }
+
+  // Calls visit(c) for every simplex listed in a grid cell at Chebyshev distance `r` from the one
+  // nearest to p (a simplex in several grid cells is visited once per cell), and for the
+  // stretched ones when r == 0. Any simplex not visited for r' <= r lies farther than r spacings
+  // from p. False when no grid cell is that far (the whole grid has been visited).
+  template <class Visit>
+  bool for_each_in_shell(const P3& p, int64_t r, Visit&& visit) const {
+    if (r == 0)
+      for (const int32_t c : large_) visit(c);
+    if (start_.empty()) return false;
+    int64_t g[3] = {0, 0, 0}, lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    bool inside = false;
+    for (int a = 0; a < 3; ++a) {
+      g[a] = a < d_ ? coordinate(p[a], a) : 0;
+      lo[a] = std::max<int64_t>(0, g[a] - r);
+      hi[a] = std::min<int64_t>(size_[a] - 1, g[a] + r);
+      inside = inside || g[a] - r >= 0 || g[a] + r <= size_[a] - 1;
+    }
+    if (!inside && r > 0) return false;
+    for (int64_t i = lo[0]; i <= hi[0]; ++i)
+      for (int64_t j = lo[1]; j <= hi[1]; ++j)
+        for (int64_t l = lo[2]; l <= hi[2]; ++l) {
+          const int64_t far =
+              std::max({std::abs(i - g[0]), std::abs(j - g[1]), std::abs(l - g[2])});
+          if (far != r) continue;
+          const int64_t flat = (i * size_[1] + j) * size_[2] + l;
+          for (int64_t e = start_[flat]; e < start_[flat + 1]; ++e)
+            visit(listed_[static_cast<size_t>(e)]);
+        }
+    return true;
+  }
+  double spacing() const { return spacing_; }
 
  private:
   int64_t coordinate(double p, int a) const {
@@ -420,7 +452,7 @@ int PhysicalProjection::push_out(double* x, ProjectionCounts& counts) const {
   if (num_bodies_ < 2) return 0;
   const int d = dim_, k = dim_ + 1;
   // Which other body each node is strictly inside of, from the positions at the pass's start.
-  const CellGrid grid(x, cells_, d);
+  const CellGrid grid(x, cells_, k, d);
   std::vector<std::pair<int64_t, int32_t>> inside;  // node, body
   for (int64_t i = 0; i < num_nodes_; ++i) {
     const P3 p = load(x, i, d);
@@ -433,13 +465,22 @@ int PhysicalProjection::push_out(double* x, ProjectionCounts& counts) const {
     });
     if (found >= 0) inside.push_back({i, found});
   }
+  if (inside.empty()) return 0;
+  // The boundary facets on a grid of their own (boxes at the pass's start; the distances below use
+  // the current positions), searched in shells of growing distance around each node.
+  const CellGrid facet_grid(x, facets_, d, d);
+  std::vector<int64_t> seen(facets_.size() / static_cast<size_t>(d), -1);
   for (const auto& [node, body] : inside) {
     const P3 p = load(x, node, d);
     double best = std::numeric_limits<double>::infinity();
     int64_t best_facet = -1;
     std::array<double, 3> best_w{};
-    for (int64_t f = facet_begin_[body]; f < facet_begin_[body + 1]; ++f) {
-      const int32_t* facet = &facets_[static_cast<size_t>(f * d)];
+    auto consider = [&](int32_t f) {
+      if (f < facet_begin_[body] || f >= facet_begin_[body + 1] ||
+          seen[static_cast<size_t>(f)] == node)
+        return;
+      seen[static_cast<size_t>(f)] = node;
+      const int32_t* facet = &facets_[static_cast<size_t>(f) * d];
       const std::array<double, 3> w =
           d == 2 ? nearest_on_segment(p, load(x, facet[0], d), load(x, facet[1], d))
                  : nearest_on_triangle(p, load(x, facet[0], d), load(x, facet[1], d),
@@ -456,6 +497,11 @@ int PhysicalProjection::push_out(double* x, ProjectionCounts& counts) const {
         best_facet = f;
         best_w = w;
       }
+    };
+    for (int64_t r = 0;; ++r) {
+      if (!facet_grid.for_each_in_shell(p, r, consider)) break;
+      const double reach = static_cast<double>(r) * facet_grid.spacing();
+      if (best <= reach * reach) break;
     }
     if (best_facet < 0 || !(best > 0)) continue;
     const int32_t* facet = &facets_[static_cast<size_t>(best_facet * d)];
