@@ -323,28 +323,14 @@ PhysicalProjection::PhysicalProjection(int dim, std::vector<int32_t> cells,
       num_nodes_(num_nodes),
       walls_(std::move(walls)),
       options_(options) {
-  if (dim_ != 2 && dim_ != 3)
-    throw std::invalid_argument("PhysicalProjection: dimension 2 or 3 (triangles or tetrahedra)");
+  check_simplex_bodies("PhysicalProjection", dim_, cells_, node_body_, num_nodes_, walls_);
   const int k = dim_ + 1;
-  if (cells_.size() % static_cast<size_t>(k) != 0)
-    throw std::invalid_argument("PhysicalProjection: cells of dim + 1 nodes");
-  if (num_nodes_ < 0 || num_nodes_ > std::numeric_limits<int32_t>::max())
-    throw std::invalid_argument("PhysicalProjection: node count out of range");
-  for (const int32_t i : cells_)
-    if (i < 0 || i >= num_nodes_)
-      throw std::invalid_argument("PhysicalProjection: a cell's node index is out of range");
-  if (node_body_.empty()) node_body_.assign(static_cast<size_t>(num_nodes_), 0);
-  if (static_cast<int64_t>(node_body_.size()) != num_nodes_)
-    throw std::invalid_argument("PhysicalProjection: one body id per node");
   if (!movable.empty() && static_cast<int64_t>(movable.size()) != num_nodes_)
     throw std::invalid_argument("PhysicalProjection: one movable flag per node");
   weight_.assign(static_cast<size_t>(num_nodes_), 1.0);
   for (size_t i = 0; i < movable.size(); ++i) weight_[i] = movable[i] ? 1.0 : 0.0;
   if (options_.walls && walls_.empty())
     throw std::invalid_argument("PhysicalProjection: walls asked for in a scene without walls");
-  if (!walls_.empty() &&
-      (static_cast<int>(walls_.lo.size()) != dim_ || static_cast<int>(walls_.hi.size()) != dim_))
-    throw std::invalid_argument("PhysicalProjection: walls have one lower and upper side per axis");
   if (!(options_.min_measure_fraction >= 0 && options_.min_measure_fraction < 1) ||
       options_.max_passes < 1)
     throw std::invalid_argument("PhysicalProjection: min_measure_fraction in [0, 1), passes >= 1");

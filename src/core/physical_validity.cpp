@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace bsms {
@@ -303,6 +304,24 @@ double FrameValidity::nodes_outside_walls_fraction() const {
                        : 0.0;
 }
 
+void check_simplex_bodies(const char* who, int dim, const std::vector<int32_t>& cells,
+                          std::vector<int32_t>& body_id, int64_t num_nodes, const BoxWalls& walls) {
+  auto fail = [who](const std::string& what) {
+    throw std::invalid_argument(std::string(who) + ": " + what);
+  };
+  if (dim != 2 && dim != 3) fail("dimension 2 or 3 (triangles or tetrahedra)");
+  if (cells.size() % static_cast<size_t>(dim + 1) != 0) fail("cells of dim + 1 nodes");
+  if (num_nodes < 0 || num_nodes > std::numeric_limits<int32_t>::max())
+    fail("node count out of range");
+  for (const int32_t i : cells)
+    if (i < 0 || i >= num_nodes) fail("a cell's node index is out of range");
+  if (body_id.empty()) body_id.assign(static_cast<size_t>(num_nodes), 0);
+  if (static_cast<int64_t>(body_id.size()) != num_nodes) fail("one body id per node");
+  if (!walls.empty() &&
+      (static_cast<int>(walls.lo.size()) != dim || static_cast<int>(walls.hi.size()) != dim))
+    fail("walls have one lower and upper side per axis");
+}
+
 PhysicalValidity::PhysicalValidity(int dim, std::vector<int32_t> cells,
                                    std::vector<int32_t> body_id, int64_t num_nodes, BoxWalls walls)
     : dim_(dim),
@@ -310,22 +329,8 @@ PhysicalValidity::PhysicalValidity(int dim, std::vector<int32_t> cells,
       node_body_(std::move(body_id)),
       num_nodes_(num_nodes),
       walls_(std::move(walls)) {
-  if (dim_ != 2 && dim_ != 3)
-    throw std::invalid_argument("PhysicalValidity: dimension 2 or 3 (triangles or tetrahedra)");
+  check_simplex_bodies("PhysicalValidity", dim_, cells_, node_body_, num_nodes_, walls_);
   const size_t k = static_cast<size_t>(dim_ + 1);
-  if (cells_.size() % k != 0)
-    throw std::invalid_argument("PhysicalValidity: cells of dim + 1 nodes");
-  if (num_nodes_ < 0 || num_nodes_ > std::numeric_limits<int32_t>::max())
-    throw std::invalid_argument("PhysicalValidity: node count out of range");
-  for (const int32_t i : cells_)
-    if (i < 0 || i >= num_nodes_)
-      throw std::invalid_argument("PhysicalValidity: a cell's node index is out of range");
-  if (node_body_.empty()) node_body_.assign(static_cast<size_t>(num_nodes_), 0);
-  if (static_cast<int64_t>(node_body_.size()) != num_nodes_)
-    throw std::invalid_argument("PhysicalValidity: one body id per node");
-  if (!walls_.empty() &&
-      (static_cast<int>(walls_.lo.size()) != dim_ || static_cast<int>(walls_.hi.size()) != dim_))
-    throw std::invalid_argument("PhysicalValidity: walls have one lower and upper side per axis");
   cell_body_.resize(cells_.size() / k);
   for (size_t c = 0; c < cell_body_.size(); ++c) cell_body_[c] = node_body_[cells_[c * k]];
   several_bodies_ = std::any_of(node_body_.begin(), node_body_.end(),

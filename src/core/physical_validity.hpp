@@ -48,6 +48,13 @@ struct BoxWalls {
   bool empty() const { return lo.empty(); }
 };
 
+// The checks both a frame's measures and its projection (core/physical_projection.hpp) make of a
+// multi-body simplex mesh: dimension 2 or 3, cells of dim + 1 nodes indexing the nodes, one body
+// id per node (`body_id` empty: filled with body 0), walls of dim sides when given.
+// std::invalid_argument naming `who` otherwise.
+void check_simplex_bodies(const char* who, int dim, const std::vector<int32_t>& cells,
+                          std::vector<int32_t>& body_id, int64_t num_nodes, const BoxWalls& walls);
+
 struct FrameValidity {
   double cell_measure = 0.0;     // sum of the cells' unsigned areas / volumes
   double overlap_measure = 0.0;  // between cells of different bodies (see above)

@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "simplex_bodies.hpp"
+
 namespace bsms {
 namespace {
 
@@ -63,47 +65,20 @@ struct Mesh {
   }
 };
 
-// [0, 1]^2 in n x n squares of two triangles.
-Mesh square(int n) {
+// One body as the test's mesh (float positions, body 0).
+Mesh as_mesh(const simplex_bodies::Body& b, int dim) {
   Mesh m;
-  for (int j = 0; j <= n; ++j)
-    for (int i = 0; i <= n; ++i)
-      m.x.insert(m.x.end(), {static_cast<float>(i) / n, static_cast<float>(j) / n});
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) {
-      const int32_t a = j * (n + 1) + i, c = a + 1, e = a + n + 1, f = e + 1;
-      m.cells.insert(m.cells.end(), {a, c, f, a, f, e});
-    }
+  m.dim = dim;
+  m.x.assign(b.points.begin(), b.points.end());
+  m.cells = b.cells;
   m.body.assign(static_cast<size_t>(m.num_nodes()), 0);
   return m;
 }
-
-// [0, 1]^3 in n^3 cubes of 6 tetrahedra.
+Mesh square(int n) {
+  return as_mesh(simplex_bodies::square(n), 2);
+}
 Mesh cube(int n) {
-  Mesh m;
-  m.dim = 3;
-  auto index = [n](int i, int j, int k) {
-    return static_cast<int32_t>((k * (n + 1) + j) * (n + 1) + i);
-  };
-  for (int k = 0; k <= n; ++k)
-    for (int j = 0; j <= n; ++j)
-      for (int i = 0; i <= n; ++i)
-        m.x.insert(m.x.end(), {static_cast<float>(i) / n, static_cast<float>(j) / n,
-                               static_cast<float>(k) / n});
-  const int axes[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& order : axes) {
-          int at[3] = {i, j, k};
-          m.cells.push_back(index(at[0], at[1], at[2]));
-          for (int s = 0; s < 3; ++s) {
-            ++at[order[s]];
-            m.cells.push_back(index(at[0], at[1], at[2]));
-          }
-        }
-  m.body.assign(static_cast<size_t>(m.num_nodes()), 0);
-  return m;
+  return as_mesh(simplex_bodies::cube(n), 3);
 }
 
 ProjectionOptions all() {
