@@ -9,25 +9,21 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/point3.hpp"
+
 namespace bsms {
 
 namespace {
 
-using P3 = std::array<double, 3>;
+using point3::cross;
+using point3::dot;
+using point3::P3;
+using point3::sub;
 
 P3 load(const double* x, int64_t node, int d) {
   P3 p = {0, 0, 0};
   for (int a = 0; a < d; ++a) p[a] = x[node * d + a];
   return p;
-}
-P3 sub(const P3& a, const P3& b) {
-  return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
-}
-P3 cross(const P3& a, const P3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double dot(const P3& a, const P3& b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
 
 // Signed area (2-D) or volume (3-D) of cell `c` and, when `grad` is given, its gradient with

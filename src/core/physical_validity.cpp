@@ -7,27 +7,23 @@
 #include <string>
 #include <utility>
 
+#include "core/point3.hpp"
+
 namespace bsms {
 
 namespace {
 
 using P2 = std::array<double, 2>;
-using P3 = std::array<double, 3>;
+using point3::cross;
+using point3::dot;
+using point3::P3;
+using point3::sub;
 
 // Twice the signed area of (o, a, b): > 0 when counter-clockwise.
 double cross2(const P2& o, const P2& a, const P2& b) {
   return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
 }
 
-P3 sub(const P3& a, const P3& b) {
-  return {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
-}
-P3 cross(const P3& a, const P3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double dot(const P3& a, const P3& b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
 // Six times the signed volume of (a, b, c, d).
 double orient3(const P3& a, const P3& b, const P3& c, const P3& d) {
   return dot(cross(sub(b, a), sub(c, a)), sub(d, a));
