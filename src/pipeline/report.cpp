@@ -237,6 +237,15 @@ void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
            << format_number(cheapest->ms_per_frame / m.infer_ms_per_step, 2, Notation::kFixed)
            << "× the model's time per frame at "
            << format_number(cheapest->rmse_all / model_rmse, 3) << "× its RMSE-all.";
+      // Settings left out for their unstable solves that would otherwise be the answer.
+      std::string shaky;
+      for (const FrontierSetting& s : f.settings)
+        if (s.unstable > 0 && std::isfinite(s.rmse_all) && s.rmse_all < model_rmse &&
+            (!cheapest || s.ms_per_frame < cheapest->ms_per_frame))
+          shaky += (shaky.empty() ? "" : ", ") + s.name + " (lost " + std::to_string(s.unstable) +
+                   " of " + std::to_string(f.trajectories) + " solves)";
+      if (!shaky.empty())
+        md << " Faster than that and more accurate, but unstable: " << shaky << ".";
     } else {
       const FrontierSetting& b = *beating.front();
       md << "beaten by solver setting " << b.name << " ("

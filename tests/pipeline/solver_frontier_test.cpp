@@ -405,7 +405,8 @@ TEST(SolverFrontier, ReportDrawsTheFrontierAndSaysWhetherASettingBeatsEachRun) {
   // The nearest alternative is named: cheap costs 4 model steps at a quarter of the error.
   EXPECT_NE(text.find("- fast (1.00 ms/step, RMSE-all 2.00e-02 m): no cheaper solver setting is "
                       "both as fast and as accurate. The cheapest more accurate one, cheap, costs "
-                      "4.00× the model's time per frame at 0.25× its RMSE-all."),
+                      "4.00× the model's time per frame at 0.25× its RMSE-all. Faster than that "
+                      "and more accurate, but unstable: shaky (lost 1 of 2 solves)."),
             std::string::npos)
       << text;
   EXPECT_NE(text.find("- slow (20.00 ms/step, RMSE-all 2.00e-02 m): beaten by solver setting "
