@@ -17,8 +17,6 @@
 
 namespace bsms {
 
-const char* const kCheckpointFormat = "bsms-checkpoint";
-
 namespace {
 
 const char* const kModel = "/model";

@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "models/checkpoint_format.hpp"
+
 namespace bsms {
 
 constexpr int64_t kCheckpointVersion = 1;
@@ -82,8 +84,5 @@ CheckpointContents checkpoint_contents(const torch::nn::Module& module,
                                        const torch::optim::Adam* optimizer,
                                        const TrainingState* state);
 void write_checkpoint_contents(const std::string& path, const CheckpointContents& contents);
-
-// "bsms-checkpoint": the root format attribute of these files.
-extern const char* const kCheckpointFormat;
 
 }  // namespace bsms

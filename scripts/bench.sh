@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
 # Benchmarks (Google Benchmark; medians reported). Usage: scripts/bench.sh BUILD_DIR [THREADS] [WHICH]
-# WHICH: preprocess | models | mpm | all (default all). Prints the machine, threads and inputs
+# WHICH: preprocess | models | mpm | startup | all (default all). Prints the machine, threads and inputs
 # with the figures; JSON copies go to runs/bench/bench_<which>.json.
 set -euo pipefail
 
 if [[ $# -lt 1 ]]; then
-  echo "usage: $0 BUILD_DIR [THREADS] [preprocess|models|mpm|all]" >&2
+  echo "usage: $0 BUILD_DIR [THREADS] [preprocess|models|mpm|startup|all]" >&2
   exit 2
 fi
 build_dir=$1
@@ -42,4 +42,32 @@ fi
 if [[ $which == mpm || $which == all ]]; then
   echo "== mpm: particle-steps per second, UMLS vs regular-grid quadratic B-spline, 2D and 3D"
   run mpm | grep -E 'median|Benchmark|^-|mean'
+fi
+if [[ $which == startup || $which == all ]]; then
+  echo "== start-up: median wall time of 10 runs of each command, environment as a user's (no"
+  echo "   OMP_* or OPENBLAS_* set); info reads a small multilevel file. The front end runs info,"
+  echo "   report, export, preprocess itself; simulate/generate go on to bsms-solver (libgmsh),"
+  echo "   train/rollout/experiment to bsms-torch (LibTorch) (src/cli/programs.hpp)"
+  bsms=$build_dir/bsms
+  small=$root/runs/bench/startup_plate.h5
+  [[ -f $small ]] || "$bsms" preprocess --mesh "$root/configs/geometry/plate_hole.geo" --out "$small" >/dev/null
+  startup() {
+    local times=() start end
+    for _ in 1 2 3 4 5 6 7 8 9 10; do
+      start=$(date +%s%N)
+      env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT -u OPENBLAS_CORETYPE "$bsms" "$@" >/dev/null 2>&1
+      end=$(date +%s%N)
+      times+=($(((end - start) / 1000)))
+    done
+    local median
+    median=$(printf '%s\n' "${times[@]}" | sort -n | sed -n '5,6p' | awk '{s += $1} END {printf "%.1f", s / 2 / 1000}')
+    printf '  %-28s %8s ms\n' "bsms $*" "$median"
+  }
+  startup --version
+  startup --help
+  startup info "$small"
+  startup preprocess --help
+  startup simulate --help
+  startup generate --help
+  startup train --help
 fi

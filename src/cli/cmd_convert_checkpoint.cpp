@@ -3,6 +3,7 @@
 #include <iostream>
 
 #include "cli/command.hpp"
+#include "cli/programs.hpp"
 #include "core/error.hpp"
 #include "pipeline/legacy_checkpoint.hpp"
 #include "pipeline/simulator.hpp"
@@ -16,9 +17,7 @@ struct ConvertArgs {
 };
 
 BSMS_COMMAND(
-    "convert-checkpoint",
-    "convert an older run's LibTorch checkpoint (latest.pt) to latest.h5, for a file you trust",
-    [](CLI::App& sub) {
+    "convert-checkpoint", bsms::cli::handed_command_help("convert-checkpoint"), [](CLI::App& sub) {
       auto args = std::make_shared<ConvertArgs>();
       sub.add_option("run", args->run, "run folder holding checkpoints/latest.pt")->required();
       sub.add_flag("--trust-torch-archive", args->trust,

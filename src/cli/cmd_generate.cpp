@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "cli/command.hpp"
+#include "cli/programs.hpp"
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "data/generate/generator.hpp"
@@ -74,26 +75,24 @@ void run(const GenerateCliOptions& o) {
 
 }  // namespace
 
-BSMS_COMMAND(
-    "generate", "generate a dataset of randomized UMLS-MPM trajectories (train/valid/test HDF5)",
-    [](CLI::App& sub) {
-      auto o = std::make_shared<GenerateCliOptions>();
-      sub.add_option("inputs", o->inputs,
-                     "family config (configs/families/disks2d.json, ...), or with --merge the "
-                     "shard output folders")
-          ->required();
-      sub.add_option("--out", o->out, "output folder: train.h5, valid.h5, test.h5, generate.json")
-          ->required();
-      sub.add_option("--trajectories", o->trajectories, "number of trajectories over all splits")
-          ->check(CLI::Range(int64_t{0}, int64_t{100000000}));
-      sub.add_option("--split", o->split, "train:valid:test weights")->default_val("80:10:10");
-      sub.add_option("--seed", o->seed, "run seed (trajectory i uses a seed derived from it)")
-          ->default_val(0);
-      sub.add_option("--shard", o->shard,
-                     "k/n: make only trajectories i with i % n == k - 1 (1-based k)")
-          ->default_val("1/1");
-      sub.add_flag("--merge", o->merge, "combine the parts of shard folders given as inputs");
-      bsms::cli::add_set_option(sub, o->sets);
-      bsms::cli::add_threads_option(sub, o->threads);
-      sub.callback([o] { run(*o); });
-    });
+BSMS_COMMAND("generate", bsms::cli::handed_command_help("generate"), [](CLI::App& sub) {
+  auto o = std::make_shared<GenerateCliOptions>();
+  sub.add_option("inputs", o->inputs,
+                 "family config (configs/families/disks2d.json, ...), or with --merge the "
+                 "shard output folders")
+      ->required();
+  sub.add_option("--out", o->out, "output folder: train.h5, valid.h5, test.h5, generate.json")
+      ->required();
+  sub.add_option("--trajectories", o->trajectories, "number of trajectories over all splits")
+      ->check(CLI::Range(int64_t{0}, int64_t{100000000}));
+  sub.add_option("--split", o->split, "train:valid:test weights")->default_val("80:10:10");
+  sub.add_option("--seed", o->seed, "run seed (trajectory i uses a seed derived from it)")
+      ->default_val(0);
+  sub.add_option("--shard", o->shard,
+                 "k/n: make only trajectories i with i % n == k - 1 (1-based k)")
+      ->default_val("1/1");
+  sub.add_flag("--merge", o->merge, "combine the parts of shard folders given as inputs");
+  bsms::cli::add_set_option(sub, o->sets);
+  bsms::cli::add_threads_option(sub, o->threads);
+  sub.callback([o] { run(*o); });
+});

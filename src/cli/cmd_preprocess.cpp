@@ -14,7 +14,7 @@
 #include "core/one_line.hpp"
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
-#include "pipeline/graph_store.hpp"
+#include "pipeline/graph_cache.hpp"
 #include "preprocess/multilevel_file.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
@@ -96,9 +96,9 @@ void run_preprocess_data(const PreprocessOptions& options) {
   fs::create_directories(out, ec);
   if (ec || !fs::is_directory(out))
     throw bsms::InputError(out + ": cannot create the output folder");
-  // The store reuses an entry already in `out` that matches (so a stopped run resumes) and
+  // The cache reuses an entry already in `out` that matches (so a stopped run resumes) and
   // builds and writes the others, exactly as training's first use would.
-  bsms::GraphStore store(seeding, levels, {out}, options.seed, /*require_write=*/true);
+  bsms::MultilevelCache cache(seeding, levels, {out}, options.seed, /*require_write=*/true);
   std::set<std::string> done;
   std::printf("%-18s %8s %10s %12s %10s\n", "topology", "levels", "nodes", "edges(L0)", "ms");
   for (const auto& d : splits) {
@@ -106,7 +106,7 @@ void run_preprocess_data(const PreprocessOptions& options) {
       const auto& mesh = d.mesh(t);
       if (!done.insert(bsms::topology_key(mesh)).second) continue;
       bsms::Stopwatch clock;
-      const bsms::MeshGraphs& graphs = store.get(mesh);
+      const bsms::CachedMultilevel graphs = cache.load_or_build(mesh);
       const bsms::GraphLevel& finest = graphs.multilevel.levels[0];
       char ms[32];
       std::snprintf(ms, sizeof ms, "%.1f", clock.milliseconds());

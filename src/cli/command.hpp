@@ -22,12 +22,22 @@ struct Command {
 
 std::vector<Command>& command_registry();
 
+// Parses the command line against the registered commands and runs the chosen one; returns the
+// exit code (see --help's footer). Each program's main calls it after setting up its process.
+int run_cli(int argc, char** argv);
+
 struct CommandRegistrar {
   explicit CommandRegistrar(Command command) { command_registry().push_back(std::move(command)); }
 };
 
 // The command line this process was started with (argv), e.g. to start it again as ranks.
 std::vector<std::string>& program_arguments();
+
+// Describes a training or module checkpoint for `bsms info`, with `indent` before each line. Set in
+// bsms-torch only (cmd_info_checkpoint.cpp); where it is null, info hands the command to
+// bsms-torch (programs.hpp).
+using CheckpointDescriber = std::string (*)(const std::string& path, const std::string& indent);
+CheckpointDescriber& checkpoint_describer();
 
 // Options most subcommands share.
 void add_threads_option(CLI::App& sub, int& threads);

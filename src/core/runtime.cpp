@@ -110,7 +110,7 @@ std::string blas_core_override(const std::string& detected_core, const CpuFeatur
   return "";
 }
 
-void ensure_process_environment(char** argv) {
+bool prepare_process_environment() {
   bool changed = false;
   if (std::getenv("OMP_WAIT_POLICY") == nullptr && std::getenv("GOMP_SPINCOUNT") == nullptr) {
     setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
@@ -124,7 +124,15 @@ void ensure_process_environment(char** argv) {
       changed = true;
     }
   }
-  if (changed) execv("/proc/self/exe", argv);
+  return changed;
+}
+
+void ensure_process_environment(char** argv) {
+  if (prepare_process_environment()) execv("/proc/self/exe", argv);
+}
+
+bool load_blas_library() {
+  return dlopen("libblas.so.3", RTLD_NOW | RTLD_GLOBAL) != nullptr;
 }
 
 void tune_allocator() {

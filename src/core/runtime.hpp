@@ -70,6 +70,15 @@ std::string blas_core_override(const std::string& detected_core, const CpuFeatur
 //   sets blas_core_override's choice when there is one.
 // Returns only when nothing had to change or the re-exec failed (then: slower, still correct).
 void ensure_process_environment(char** argv);
+// The same settings without the re-exec, for a program about to execute another (the bsms front
+// end starting bsms-torch): returns whether it changed any. The OpenBLAS choice needs OpenBLAS
+// loaded in this process (linked, or load_blas_library).
+bool prepare_process_environment();
+
+// Loads the system BLAS (libblas.so.3, which Debian points at OpenBLAS) into a process that does
+// not link it, for blas_core / blas_config to name the kernels that LibTorch's programs get.
+// Returns whether it loaded.
+bool load_blas_library();
 
 class Stopwatch {
  public:

@@ -5,9 +5,36 @@
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
-#include "pipeline/trainer.hpp"
 
 namespace bsms {
+namespace fs = std::filesystem;
+
+std::string run_config_path(const std::string& run) {
+  return (fs::path(run) / "config.json").string();
+}
+std::string run_checkpoint_path(const std::string& run) {
+  return (fs::path(run) / "checkpoints" / "latest.h5").string();
+}
+std::string run_log_path(const std::string& run) {
+  return (fs::path(run) / "train_log.csv").string();
+}
+std::string run_stats_path(const std::string& run) {
+  return (fs::path(run) / "train_stats.json").string();
+}
+
+std::string legacy_checkpoint_path(const std::string& path) {
+  const std::filesystem::path p(path);
+  if (p.filename() != "latest.h5") return "";
+  return (p.parent_path() / "latest.pt").string();
+}
+
+std::string legacy_checkpoint_message(const std::string& legacy) {
+  const std::filesystem::path run = std::filesystem::path(legacy).parent_path().parent_path();
+  return legacy +
+         ": a LibTorch archive (older bsms), which bsms no longer loads because loading one runs "
+         "code from the file; if you trust it, convert it once: bsms convert-checkpoint " +
+         (run.empty() ? std::string(".") : run.string()) + " --trust-torch-archive";
+}
 
 void write_json_atomic(const std::string& path, const Json& value) {
   AtomicOutput out(path);

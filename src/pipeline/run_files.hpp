@@ -10,6 +10,16 @@
 
 namespace bsms {
 
+// Files of a run folder (docs/design.md "Runs").
+std::string run_config_path(const std::string& run);
+std::string run_checkpoint_path(const std::string& run);
+std::string run_log_path(const std::string& run);
+std::string run_stats_path(const std::string& run);
+// The LibTorch checkpoint older bsms wrote beside `path` (RUN/checkpoints/latest.pt for
+// RUN/checkpoints/latest.h5; empty for other names), and the one line that refuses it.
+std::string legacy_checkpoint_path(const std::string& path);
+std::string legacy_checkpoint_message(const std::string& legacy_path);
+
 void write_json_atomic(const std::string& path, const Json& value);
 void write_text_atomic(const std::string& path, const std::string& text);
 

@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "core/error.hpp"
+#include "pipeline/run_files.hpp"
 
 namespace bsms {
 
@@ -128,20 +129,6 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
                                      LearnedSimulator& simulator, torch::optim::Adam* optimizer) {
   return load_checkpoint_image(name, bytes, simulator, optimizer, /*require_training=*/true);
-}
-
-std::string legacy_checkpoint_path(const std::string& path) {
-  const std::filesystem::path p(path);
-  if (p.filename() != "latest.h5") return "";
-  return (p.parent_path() / "latest.pt").string();
-}
-
-std::string legacy_checkpoint_message(const std::string& legacy) {
-  const std::filesystem::path run = std::filesystem::path(legacy).parent_path().parent_path();
-  return legacy +
-         ": a LibTorch archive (older bsms), which bsms no longer loads because loading one runs "
-         "code from the file; if you trust it, convert it once: bsms convert-checkpoint " +
-         (run.empty() ? std::string(".") : run.string()) + " --trust-torch-archive";
 }
 
 }  // namespace bsms

@@ -78,9 +78,5 @@ CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simula
 // The same from a checkpoint file's bytes (data-parallel ranks get rank 0's); `name` for errors.
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
                                      LearnedSimulator& simulator, torch::optim::Adam* optimizer);
-// The LibTorch checkpoint older bsms wrote beside `path` (RUN/checkpoints/latest.pt for
-// RUN/checkpoints/latest.h5; empty for other names), and the one line that refuses it.
-std::string legacy_checkpoint_path(const std::string& path);
-std::string legacy_checkpoint_message(const std::string& legacy_path);
 
 }  // namespace bsms

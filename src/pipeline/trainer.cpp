@@ -36,19 +36,6 @@
 namespace bsms {
 namespace fs = std::filesystem;
 
-std::string run_config_path(const std::string& run) {
-  return (fs::path(run) / "config.json").string();
-}
-std::string run_checkpoint_path(const std::string& run) {
-  return (fs::path(run) / "checkpoints" / "latest.h5").string();
-}
-std::string run_log_path(const std::string& run) {
-  return (fs::path(run) / "train_log.csv").string();
-}
-std::string run_stats_path(const std::string& run) {
-  return (fs::path(run) / "train_stats.json").string();
-}
-
 namespace {
 
 // Drops log rows after `step` (resume) and returns the file for appending. A session killed

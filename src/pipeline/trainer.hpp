@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "pipeline/distributed.hpp"
+#include "pipeline/run_files.hpp"
 #include "pipeline/train_config.hpp"
 
 namespace bsms {
@@ -34,11 +35,5 @@ TrainResult train(const TrainRequest& request);
 // The checks `train` makes on the config, the overrides and the training data before any work,
 // for a launcher to report bad input once instead of once per rank.
 void check_train_request(const TrainRequest& request);
-
-// Files of a run folder (docs/design.md "Runs").
-std::string run_config_path(const std::string& run);
-std::string run_checkpoint_path(const std::string& run);
-std::string run_log_path(const std::string& run);
-std::string run_stats_path(const std::string& run);
 
 }  // namespace bsms
