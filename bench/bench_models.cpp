@@ -1,6 +1,10 @@
 // Training and inference step time and memory of BSMS-GNN and MeshGraphNets on structured
 // triangulated rectangles: ~2.6K nodes with 5 levels and ~22K nodes with 7 levels, latent 128,
 // inputs like CylinderFlow (velocity, node type; mesh-space edge offsets), 2 threads by default.
+// "scale/..." runs the same steps from ~300 to ~20K nodes on triangulated squares (2d) and
+// tetrahedralised cubes (3d, Freudenthal's six tetrahedra per cube), levels chosen as training's
+// `--levels auto` chooses them, for the cost per 1,000 nodes (counter ms_per_1k_nodes): a cost
+// linear in the mesh keeps it flat.
 //   build/bench/bench_models [--benchmark_filter=...]   (sets the bsms wait policy itself)
 // BSMS_BENCH_THREADS sets the thread count. "concat" variants run the reference implementation's
 // concat-then-Linear edge layer with the same parameters (models/layers.hpp, EdgeMlpMode).
@@ -35,12 +39,48 @@ using bsms::EdgeMlpMode;
 
 struct Case {
   int64_t nx, ny;
-  int levels;
+  int levels;      // 0: as training's --levels auto (exact A², auto_levels)
+  int64_t nz = 0;  // > 0: a 3-D box of tetrahedra
+  int64_t nodes() const { return nx * ny * std::max<int64_t>(nz, 1); }
+  int dim() const { return nz > 0 ? 3 : 2; }
 };
 const std::map<std::string, Case> kCases = {{"2.6K", {65, 40, 5}}, {"22K", {190, 116, 7}}};
+const std::map<std::string, Case> kScaleCases = {
+    {"2d/0.3K", {18, 18, 0}},   {"2d/2K", {45, 45, 0}},     {"2d/5K", {71, 71, 0}},
+    {"2d/20K", {142, 142, 0}},  {"3d/0.3K", {7, 7, 0, 7}},  {"3d/2K", {13, 13, 0, 13}},
+    {"3d/5K", {17, 17, 0, 17}}, {"3d/20K", {27, 27, 0, 27}}};
 
-// Structured triangulated nx × ny rectangle (diagonals alternate direction by cell parity).
+// Freudenthal's triangulation of an nx × ny × nz grid of nodes: each cube in six tetrahedra
+// around its main diagonal, so node p links to p + d for the seven d in {0,1}³ \ {0}.
+std::vector<int64_t> box_pairs(const Case& c, bsms::RowMatrixXd& positions) {
+  auto id = [&](int64_t x, int64_t y, int64_t z) { return (z * c.ny + y) * c.nx + x; };
+  std::vector<int64_t> pairs;
+  positions.resize(c.nodes(), 3);
+  for (int64_t z = 0; z < c.nz; ++z)
+    for (int64_t y = 0; y < c.ny; ++y)
+      for (int64_t x = 0; x < c.nx; ++x) {
+        positions.row(id(x, y, z)) << 0.01 * static_cast<double>(x), 0.01 * static_cast<double>(y),
+            0.01 * static_cast<double>(z);
+        for (int d = 1; d < 8; ++d) {
+          const int64_t dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
+          if (x + dx < c.nx && y + dy < c.ny && z + dz < c.nz)
+            pairs.insert(pairs.end(), {id(x, y, z), id(x + dx, y + dy, z + dz)});
+        }
+      }
+  return pairs;
+}
+
+// Structured triangulated nx × ny rectangle (diagonals alternate direction by cell parity), or
+// the box of tetrahedra when nz > 0.
 bsms::MultilevelGraph make_graph(const Case& c, bsms::RowMatrixXd& positions) {
+  bsms::BuildOptions options;
+  options.num_levels = c.levels;
+  if (c.levels == 0) options.thinning = bsms::Thinning::kOff;  // as training's auto_levels
+  if (c.nz > 0) {
+    const std::vector<int64_t> pairs = box_pairs(c, positions);
+    return bsms::build_multilevel_graph(bsms::graph_from_pairs(c.nodes(), pairs), positions,
+                                        options);
+  }
   auto id = [&](int64_t x, int64_t y) { return y * c.nx + x; };
   std::vector<int64_t> pairs;
   positions.resize(c.nx * c.ny, 2);
@@ -59,8 +99,6 @@ bsms::MultilevelGraph make_graph(const Case& c, bsms::RowMatrixXd& positions) {
       }
     }
   }
-  bsms::BuildOptions options;
-  options.num_levels = c.levels;
   return bsms::build_multilevel_graph(bsms::graph_from_pairs(c.nx * c.ny, pairs), positions,
                                       options);
 }
@@ -93,22 +131,22 @@ double median(std::vector<double> v) {
   return v.empty() ? 0.0 : v[v.size() / 2];
 }
 
-void run_case(benchmark::State& state, const std::string& case_name, bool bsms_model, bool training,
+void run_case(benchmark::State& state, const Case& c, bool bsms_model, bool training,
               EdgeMlpMode mode) {
   torch::manual_seed(0);
-  const Case& c = kCases.at(case_name);
   reset_peak_rss();
   const double rss_before = rss_mb("VmRSS:");
   bsms::RowMatrixXd positions;
   auto graph = make_graph(c, positions);
   auto hierarchy = bsms::make_multilevel_tensors(graph, bsms_model ? 0 : 1);
   const int64_t n = hierarchy.num_nodes(0);
+  const int dim = c.dim();
   bsms::GraphModelOptions o;
-  o.input_size = 3;
-  o.output_size = 2;
+  o.input_size = dim + 1;
+  o.output_size = dim;
   o.latent = 128;
-  o.position_dims = {2};
-  o.num_levels = bsms_model ? c.levels : 1;
+  o.position_dims = {dim};
+  o.num_levels = bsms_model ? graph.num_levels() : 1;
   o.message_passing_steps = 15;
   std::shared_ptr<bsms::GraphModel> model;
   if (bsms_model) {
@@ -117,9 +155,9 @@ void run_case(benchmark::State& state, const std::string& case_name, bool bsms_m
     model = std::make_shared<bsms::MeshGraphNets>(o);
   }
   model->set_edge_mlp_mode(mode);
-  auto pos = torch::from_blob(positions.data(), {n, 2}, torch::kFloat64).to(torch::kFloat32);
-  auto nodes = torch::randn({n, 3});
-  auto target = torch::randn({n, 2});
+  auto pos = torch::from_blob(positions.data(), {n, dim}, torch::kFloat64).to(torch::kFloat32);
+  auto nodes = torch::randn({n, dim + 1});
+  auto target = torch::randn({n, dim});
   // The trainer's optimizer; the "_concat" variants, done the original's way, step LibTorch's
   // own Adam (one op per update term, as PyTorch's on CPU).
   std::unique_ptr<torch::optim::Adam> adam;
@@ -157,6 +195,8 @@ void run_case(benchmark::State& state, const std::string& case_name, bool bsms_m
   state.counters["peak_mb"] = rss_mb("VmHWM:");
   state.counters["delta_mb"] = rss_mb("VmHWM:") - rss_before;
   state.counters["nodes"] = static_cast<double>(n);
+  state.counters["levels"] = o.num_levels;
+  state.counters["ms_per_1k_nodes"] = median(ms) * 1000.0 / static_cast<double>(n);
   state.counters["edges_all_levels"] = static_cast<double>(edges);
   state.counters["threads"] = torch::get_num_threads();
 }
@@ -178,12 +218,31 @@ void register_all() {
             std::string(training ? "train/" : "infer/") + v.name + "/" + case_name;
         const bool big = c.nx * c.ny > 10000;
         const int iterations = big ? (training ? 3 : 5) : (training ? 10 : 20);
-        const std::string cn = case_name;
+        const Case cc = c;
         const bool bsms_model = v.bsms_model;
         const EdgeMlpMode mode = v.mode;
         benchmark::RegisterBenchmark(name.c_str(),
-                                     [cn, bsms_model, training, mode](benchmark::State& state) {
-                                       run_case(state, cn, bsms_model, training, mode);
+                                     [cc, bsms_model, training, mode](benchmark::State& state) {
+                                       run_case(state, cc, bsms_model, training, mode);
+                                     })
+            ->Iterations(iterations)
+            ->Unit(benchmark::kMillisecond);
+      }
+    }
+  }
+  for (const auto& [case_name, c] : kScaleCases) {
+    for (const auto& v : variants) {
+      if (v.mode != EdgeMlpMode::kProjection) continue;
+      for (bool training : {true, false}) {
+        const std::string name =
+            std::string("scale/") + (training ? "train/" : "infer/") + v.name + "/" + case_name;
+        const int iterations = c.nodes() > 10000 ? (training ? 3 : 5) : (training ? 10 : 20);
+        const Case cc = c;
+        const bool bsms_model = v.bsms_model;
+        benchmark::RegisterBenchmark(name.c_str(),
+                                     [cc, bsms_model, training](benchmark::State& state) {
+                                       run_case(state, cc, bsms_model, training,
+                                                EdgeMlpMode::kProjection);
                                      })
             ->Iterations(iterations)
             ->Unit(benchmark::kMillisecond);
