@@ -1,6 +1,7 @@
 // Training and inference step time and memory of BSMS-GNN and MeshGraphNets on structured
 // triangulated rectangles: ~2.6K nodes with 5 levels and ~22K nodes with 7 levels, latent 128,
 // inputs like CylinderFlow (velocity, node type; mesh-space edge offsets), 2 threads by default.
+// "*_bf16" variants run the layers' matrix products in bfloat16 (MatmulPrecision).
 // "scale/..." runs the same steps from ~300 to ~20K nodes on triangulated squares (2d) and
 // tetrahedralised cubes (3d, Freudenthal's six tetrahedra per cube), levels chosen as training's
 // `--levels auto` chooses them, for the cost per 1,000 nodes (counter ms_per_1k_nodes): a cost
@@ -132,8 +133,10 @@ double median(std::vector<double> v) {
 }
 
 void run_case(benchmark::State& state, const Case& c, bool bsms_model, bool training,
-              EdgeMlpMode mode) {
+              EdgeMlpMode mode, bool bf16 = false) {
   torch::manual_seed(0);
+  bsms::set_matmul_precision(bf16 ? bsms::MatmulPrecision::kBFloat16
+                                  : bsms::MatmulPrecision::kFloat32);
   reset_peak_rss();
   const double rss_before = rss_mb("VmRSS:");
   bsms::RowMatrixXd positions;
@@ -199,6 +202,7 @@ void run_case(benchmark::State& state, const Case& c, bool bsms_model, bool trai
   state.counters["ms_per_1k_nodes"] = median(ms) * 1000.0 / static_cast<double>(n);
   state.counters["edges_all_levels"] = static_cast<double>(edges);
   state.counters["threads"] = torch::get_num_threads();
+  bsms::set_matmul_precision(bsms::MatmulPrecision::kFloat32);
 }
 
 void register_all() {
@@ -228,6 +232,21 @@ void register_all() {
             ->Iterations(iterations)
             ->Unit(benchmark::kMillisecond);
       }
+    }
+  }
+  // The bfloat16 products (models/graph_ops.hpp MatmulPrecision) beside float32 at 2.6K nodes.
+  for (bool bsms_model : {true, false}) {
+    for (bool training : {true, false}) {
+      const std::string name = std::string(training ? "train/" : "infer/") +
+                               (bsms_model ? "bsms" : "mgn") + "_bf16/2.6K";
+      const Case cc = kCases.at("2.6K");
+      benchmark::RegisterBenchmark(name.c_str(),
+                                   [cc, bsms_model, training](benchmark::State& state) {
+                                     run_case(state, cc, bsms_model, training,
+                                              EdgeMlpMode::kProjection, true);
+                                   })
+          ->Iterations(training ? 10 : 20)
+          ->Unit(benchmark::kMillisecond);
     }
   }
   for (const auto& [case_name, c] : kScaleCases) {

@@ -6,6 +6,7 @@
 #include <torch/autograd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <vector>
 
@@ -35,6 +36,42 @@ torch::Tensor checked_float(const torch::Tensor& t, const char* name) {
 
 const int64_t* ptr(const torch::Tensor& t) {
   return t.data_ptr<int64_t>();
+}
+
+std::atomic<int> g_matmul_precision{static_cast<int>(MatmulPrecision::kFloat32)};
+
+bool bf16_products() {
+  return g_matmul_precision.load(std::memory_order_relaxed) ==
+         static_cast<int>(MatmulPrecision::kBFloat16);
+}
+
+// A weight operand as the products take it: in bfloat16 mode rounded once per kernel call (not
+// per tile), else the float32 tensor itself.
+torch::Tensor gemm_operand(const torch::Tensor& w, bool bf16 = bf16_products()) {
+  return bf16 ? w.to(torch::kBFloat16).contiguous() : w;
+}
+
+// out = a · b, out and a float32; b float32 or gemm_operand's bfloat16.
+void gemm_out(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b) {
+  if (b.scalar_type() != torch::kBFloat16) {
+    at::mm_out(out, a, b);
+    return;
+  }
+  out.copy_(at::mm(a.to(torch::kBFloat16), b));
+}
+
+// out += a · b, as gemm_out.
+void gemm_add(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b) {
+  if (b.scalar_type() != torch::kBFloat16) {
+    out.addmm_(a, b);
+    return;
+  }
+  out.add_(at::mm(a.to(torch::kBFloat16), b));
+}
+
+torch::Tensor gemm(const torch::Tensor& a, const torch::Tensor& b) {
+  if (b.scalar_type() != torch::kBFloat16) return a.mm(b);
+  return at::mm(a.to(torch::kBFloat16), b).to(torch::kFloat32);
 }
 
 // Row kernels on raw float rows of `channels` values. Cloned for x86-64-v4 (AVX-512) and
@@ -329,6 +366,7 @@ struct EdgeFirstLayer : torch::autograd::Function<EdgeFirstLayer> {
     });
     ctx->save_for_backward({out, features, weight});
     ctx->saved_data["has_base"] = has_base;
+    ctx->saved_data["bf16"] = bf16_products();
     ctx->saved_data["sender_offsets"] = edges.sender_offsets;
     ctx->saved_data["sender_order"] = edges.sender_order;
     ctx->saved_data["receiver_offsets"] = edges.receiver_offsets;
@@ -347,7 +385,8 @@ struct EdgeFirstLayer : torch::autograd::Function<EdgeFirstLayer> {
     auto grad_bias = relu_mask(out, grad, masked);
     const int64_t nodes = ctx->saved_data["num_nodes"].toInt();
     torch::Tensor grad_features, grad_weight, ga, gb;
-    if (ctx->needs_input_grad(1)) grad_features = masked.mm(weight);
+    if (ctx->needs_input_grad(1))
+      grad_features = gemm(masked, gemm_operand(weight, ctx->saved_data["bf16"].toBool()));
     if (ctx->needs_input_grad(2)) {
       // gradᵀ · features [C, K] with K the few edge features: BLAS's small-matrix path ran this
       // long, thin product at ~15 GFLOP/s on one thread; here as sums of per-edge outer products
@@ -429,15 +468,16 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
     auto bias = has_bias ? bias_in.contiguous() : torch::Tensor();
     if (has_bias && bias.numel() != out_size) throw InputError("linear: bias size mismatch");
     auto y = torch::empty({rows, out_size}, x.options());
-    auto wt = weight.t();
+    const auto wt = gemm_operand(weight.t());
     const float* pb = has_bias ? bias.data_ptr<float>() : nullptr;
     parallel_blocks(rows, kMinForwardRows, [&](int64_t r0, int64_t r1) {
       auto yb = y.slice(0, r0, r1);
-      at::mm_out(yb, x.slice(0, r0, r1), wt);
+      gemm_out(yb, x.slice(0, r0, r1), wt);
       if (pb || relu) bias_relu_rows(y.data_ptr<float>(), pb, relu, r0, r1, out_size);
     });
     ctx->save_for_backward({x, weight, relu ? y : torch::Tensor()});
     ctx->saved_data["relu"] = relu;
+    ctx->saved_data["bf16"] = bf16_products();  // the backward's products as the forward's
     ctx->saved_data["has_bias"] = has_bias;
     return y;
   }
@@ -448,6 +488,7 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
     const auto weight = saved[1].detach();
     const bool relu = ctx->saved_data["relu"].toBool();
     const bool has_bias = ctx->saved_data["has_bias"].toBool();
+    const bool bf16 = ctx->saved_data["bf16"].toBool();
     auto grad = grads[0].contiguous().detach();
     torch::Tensor grad_bias;
     if (relu) {
@@ -464,9 +505,10 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
     torch::Tensor grad_x, grad_weight;
     if (ctx->needs_input_grad(0)) {
       grad_x = torch::empty_like(x);
+      const auto w = gemm_operand(weight, bf16);
       parallel_blocks(x.size(0), kMinForwardRows, [&](int64_t r0, int64_t r1) {
         auto gb = grad_x.slice(0, r0, r1);
-        at::mm_out(gb, grad.slice(0, r0, r1), weight);
+        gemm_out(gb, grad.slice(0, r0, r1), w);
       });
     }
     if (ctx->needs_input_grad(1)) {
@@ -481,7 +523,8 @@ struct LinearFn : torch::autograd::Function<LinearFn> {
         for (int64_t blk = b0; blk < b1; ++blk) {
           const int64_t r0 = blk * block, r1 = std::min(rows, r0 + block);
           auto gw = partial[blk];
-          at::mm_out(gw, grad.slice(0, r0, r1).t(), x.slice(0, r0, r1));
+          const auto xb = x.slice(0, r0, r1);
+          gemm_out(gw, grad.slice(0, r0, r1).t(), gemm_operand(xb, bf16));
         }
       });
       grad_weight = blocks == 1 ? partial[0] : partial.sum(0);
@@ -692,7 +735,7 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
   const auto &b1 = m.b1, &b2 = m.b2, &b3 = m.b3;
   const int64_t channels = m.channels, k = m.k, nodes = m.nodes;
   auto w1t = w1.t().contiguous();  // [K, C]: the inner loop runs over contiguous channels
-  const auto w2t = w2.t(), w3t = w3.t();
+  const auto w2t = gemm_operand(w2.t()), w3t = gemm_operand(w3.t());
   auto out = torch::zeros({nodes, channels}, a.options());
   const float* pf = features.data_ptr<float>();
   const float* pw1 = w1t.data_ptr<float>();
@@ -730,10 +773,10 @@ torch::Tensor edge_mlp_segment_sum(const torch::Tensor& features_in, const torch
                        ph1 + t * channels);
       }
       auto h2n = h2.narrow(0, 0, n);
-      at::mm_out(h2n, h1.narrow(0, 0, n), w2t);
+      gemm_out(h2n, h1.narrow(0, 0, n), w2t);
       bias_relu_rows(ph2, pb2, true, 0, n, channels);
       auto yn = y.narrow(0, 0, n);
-      at::mm_out(yn, h2n, w3t);
+      gemm_out(yn, h2n, w3t);
       for (int64_t t = 0; t < n; ++t) {
         const int64_t e = order[q0 + t];
         layer_norm_accumulate_row(py + t * channels, pb3, channels, kLayerNormEps, stats,
@@ -758,7 +801,7 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
   const auto &latent = m.x, &a = m.a, &b = m.b, &w1 = m.w1, &w2 = m.w2, &w3 = m.w3;
   const auto &b1 = m.b1, &b2 = m.b2, &b3 = m.b3;
   const int64_t channels = m.channels, k = m.k, nodes = m.nodes;
-  const auto w1t = w1.t(), w2t = w2.t(), w3t = w3.t();
+  const auto w1t = gemm_operand(w1.t()), w2t = gemm_operand(w2.t()), w3t = gemm_operand(w3.t());
   auto out = torch::zeros({nodes, channels}, a.options());
   latent_out = torch::empty_like(latent);
   const float* pl = latent.data_ptr<float>();
@@ -791,7 +834,7 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
         std::copy(pl + e * k, pl + (e + 1) * k, pg + t * k);
       }
       auto h1n = h1.narrow(0, 0, n);
-      at::mm_out(h1n, g.narrow(0, 0, n), w1t);
+      gemm_out(h1n, g.narrow(0, 0, n), w1t);
       for (int64_t t = 0; t < n; ++t) {
         const int64_t e = order[q0 + t];
         float* o = ph1 + t * channels;
@@ -801,9 +844,9 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
         for (int64_t c = 0; c < channels; ++c) o[c] = relu_value(o[c] + pb1[c] + as[c] + br[c]);
       }
       auto h2n = h2.narrow(0, 0, n);
-      at::mm_out(h2n, h1n, w2t);
+      gemm_out(h2n, h1n, w2t);
       bias_relu_rows(ph2, pb2, true, 0, n, channels);
-      at::mm_out(h1n, h2n, w3t);  // h1 reused for the last layer's output
+      gemm_out(h1n, h2n, w3t);  // h1 reused for the last layer's output
       for (int64_t t = 0; t < n; ++t) {
         const int64_t e = order[q0 + t];
         const float* y = ph1 + t * channels;
@@ -882,7 +925,7 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
                        std::to_string(w.size(1)));
     width = w.size(0);
     widest = std::max(widest, width);
-    wt.push_back(w.t());
+    wt.push_back(gemm_operand(w.t()));
     const bool has_bias = layer.bias.defined() && layer.bias.dim() == 1;
     if (has_bias && layer.bias.numel() != width) throw InputError("linear: bias size mismatch");
     bias.push_back(has_bias ? layer.bias.detach().contiguous() : torch::Tensor());
@@ -916,9 +959,9 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
           if (!at_rows[p].defined()) {
             const auto xp = x[p].slice(0, r0, r1);
             if (p == 0)
-              at::mm_out(o, xp, wp);
+              gemm_out(o, xp, wp);
             else
-              o.addmm_(xp, wp);
+              gemm_add(o, xp, wp);
             continue;
           }
           const int64_t* pr = at_rows[p].data_ptr<int64_t>();
@@ -926,7 +969,7 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
           const int64_t q0 = std::lower_bound(pr, pr + count, r0) - pr;
           const int64_t q1 = std::lower_bound(pr, pr + count, r1) - pr;
           if (q1 == q0) continue;
-          const auto add = x[p].slice(0, q0, q1).mm(wp);
+          const auto add = gemm(x[p].slice(0, q0, q1), wp);
           const float* pa = add.data_ptr<float>();
           float* po = o.data_ptr<float>();
           for (int64_t q = q0; q < q1; ++q) {
@@ -936,7 +979,7 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
           }
         }
       } else {
-        at::mm_out(o, in_block, wt[l]);
+        gemm_out(o, in_block, wt[l]);
       }
       float* po = o.data_ptr<float>();
       if (l == last && layer_norm)
@@ -947,6 +990,14 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
     }
   });
   return y;
+}
+
+void set_matmul_precision(MatmulPrecision precision) {
+  g_matmul_precision.store(static_cast<int>(precision), std::memory_order_relaxed);
+}
+
+MatmulPrecision matmul_precision() {
+  return static_cast<MatmulPrecision>(g_matmul_precision.load(std::memory_order_relaxed));
 }
 
 int configure_threads(int threads) {

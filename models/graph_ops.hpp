@@ -30,6 +30,16 @@ torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const 
 // GEMMs over LibTorch's OpenMP pool itself. Returns the LibTorch thread count.
 int configure_threads(int threads);
 
+// Precision of the kernels' matrix products. kBFloat16: both operands rounded to bfloat16 and
+// multiplied by oneDNN (LibTorch's mkldnn), whose bfloat16 GEMM runs at twice float32's rate on
+// CPUs with AVX-512 BF16 (Zen 4, Cooper Lake and later Xeons); products accumulate in float32
+// but come back rounded to bfloat16 before they are widened again. Everything else (bias, ReLU,
+// LayerNorm, sums over edges, parameters, optimizer state) stays float32. Process-wide; set by
+// training and rollout from the model config (model.precision).
+enum class MatmulPrecision { kFloat32, kBFloat16 };
+void set_matmul_precision(MatmulPrecision precision);
+MatmulPrecision matmul_precision();
+
 // One layer of mlp_inference: x · weightᵀ + bias (bias may be undefined), then ReLU if `relu`.
 struct DenseLayer {
   torch::Tensor weight, bias;

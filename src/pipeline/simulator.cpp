@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "core/error.hpp"
+#include "models/graph_ops.hpp"
 #include "pipeline/run_files.hpp"
 
 namespace bsms {
@@ -40,6 +41,7 @@ LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& c
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
   o.mp_per_level = config.mp_per_level;
+  bf16_ = config.precision == "bf16";
   if (config.type == "bsms") {
     o.level_blocks = config.level_blocks;
     model_ = std::make_shared<BsmsGnn>(o);
@@ -59,6 +61,14 @@ int64_t LearnedSimulator::num_parameters() const {
 }
 
 torch::Tensor LearnedSimulator::forward_normalized(const Batch& batch) {
+  // The products' precision for this model's forward (and, saved by the kernels, its backward);
+  // restored after, so that models of different precision can run in one process.
+  const MatmulPrecision before = matmul_precision();
+  set_matmul_precision(bf16_ ? MatmulPrecision::kBFloat16 : MatmulPrecision::kFloat32);
+  struct Restore {
+    MatmulPrecision p;
+    ~Restore() { set_matmul_precision(p); }
+  } restore{before};
   return model_->forward(input_norm_->normalize(batch.inputs), batch.positions, batch.graph);
 }
 

@@ -63,6 +63,7 @@ class LearnedSimulator : public torch::nn::Module {
   torch::Tensor forward_normalized(const Batch& batch);
   std::shared_ptr<GraphModel> model_;
   std::shared_ptr<Normalizer> input_norm_, output_norm_;
+  bool bf16_ = false;  // model.precision "bf16": bfloat16 matrix products (models/graph_ops.hpp)
 };
 
 // Checkpoint (models/checkpoint.hpp, HDF5): simulator parameters and buffers, optimizer state

@@ -66,6 +66,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
       require(c.model.mp_per_level >= 1 && c.model.mp_per_level <= 16, m.context("mp_per_level"),
               "in 1..16");
     }
+    c.model.precision = m.opt<std::string>("precision", c.model.precision);
+    require(c.model.precision == "float32" || c.model.precision == "bf16", m.context("precision"),
+            "\"float32\" or \"bf16\"");
     m.finish();
   }
   if (top.has("features")) {
@@ -194,6 +197,7 @@ Json to_json(const TrainConfig& c) {
            {"batch_size", c.optimizer.batch_size}}}};
   // Keys added later are written only when set, so that runs trained before them still match
   // their saved configuration on --resume.
+  if (c.model.precision != ModelConfig().precision) j["model"]["precision"] = c.model.precision;
   const FeatureConfig defaults;
   Json& f = j["features"];
   if (c.features.output != defaults.output) f["output"] = c.features.output;

@@ -20,6 +20,9 @@ struct ModelConfig {
   // BSMS: blocks per level, one per level from the mesh down (config: mp_per_level as a list);
   // empty = mp_per_level on every level.
   std::vector<int> level_blocks;
+  // Matrix products of the model's layers: "float32" or "bf16" (models/graph_ops.hpp,
+  // MatmulPrecision: bfloat16 operands, float32 everything else).
+  std::string precision = "float32";
 };
 
 struct FeatureConfig {

@@ -116,6 +116,54 @@ TEST(GraphOps, LinearMatchesAddmm) {
   }
 }
 
+// bfloat16 products (MatmulPrecision): linear's value and gradients, and the fused inference
+// kernel, within bfloat16's rounding of the float32 ones (8 significant bits: a relative error of
+// ~0.4 % per operand), but not equal to them (the products did run in bfloat16); the backward
+// keeps the precision its forward ran with, whatever is set when it runs.
+TEST(GraphOps, Bf16ProductsStayWithinBf16RoundingOfFloat32) {
+  torch::manual_seed(11);
+  auto x = torch::randn({600, 64}, torch::requires_grad());
+  auto w = torch::randn({48, 64}, torch::requires_grad());
+  auto bias = torch::randn({48}, torch::requires_grad());
+  auto run = [&](MatmulPrecision p) {
+    set_matmul_precision(p);
+    auto y = linear(x, w, bias, true);
+    set_matmul_precision(MatmulPrecision::kFloat32);  // backward must not read this
+    auto g = torch::autograd::grad({(y * y).sum()}, {x, w});
+    return std::vector<torch::Tensor>{y.detach(), g[0], g[1]};
+  };
+  const auto f32 = run(MatmulPrecision::kFloat32);
+  const auto b16 = run(MatmulPrecision::kBFloat16);
+  EXPECT_EQ(matmul_precision(), MatmulPrecision::kFloat32);
+  for (size_t i = 0; i < f32.size(); ++i) {
+    const double scale = f32[i].abs().max().item<double>();
+    const double diff = (b16[i] - f32[i]).abs().max().item<double>();
+    EXPECT_LT(diff, 0.03 * scale) << "output " << i;
+    EXPECT_GT(diff, 1e-6 * scale) << "output " << i << ": no bfloat16 rounding seen";
+  }
+  // The fused inference edge MLP (tiles of 256 edges) and mlp_inference.
+  const int64_t n = 61, e = 700, c = 24;
+  auto index = EdgeIndex::from_pairs(random_pairs(n, e), n);
+  auto f = torch::randn({e, 3});
+  auto w1 = torch::randn({c, 3}), b1 = torch::randn({c});
+  auto a = torch::randn({n, c}), b = torch::randn({n, c});
+  auto w2 = torch::randn({c, c}) / 5, b2 = torch::randn({c});
+  auto w3 = torch::randn({c, c}) / 5, b3 = torch::randn({c});
+  torch::NoGradGuard no_grad;
+  const auto fused32 = edge_mlp_segment_sum(f, w1, b1, a, b, w2, b2, w3, b3, index);
+  set_matmul_precision(MatmulPrecision::kBFloat16);
+  const auto fused16 = edge_mlp_segment_sum(f, w1, b1, a, b, w2, b2, w3, b3, index);
+  const auto mlp16 = mlp_inference({a}, {{w2, b2, true}, {w3, b3, false}}, false, {});
+  set_matmul_precision(MatmulPrecision::kFloat32);
+  const auto mlp32 = mlp_inference({a}, {{w2, b2, true}, {w3, b3, false}}, false, {});
+  for (const auto& [lo, hi] : {std::make_pair(fused16, fused32), std::make_pair(mlp16, mlp32)}) {
+    const double scale = hi.abs().max().item<double>();
+    const double diff = (lo - hi).abs().max().item<double>();
+    EXPECT_LT(diff, 0.05 * scale);
+    EXPECT_GT(diff, 1e-6 * scale);
+  }
+}
+
 // Inference MLPs: each worker takes its rows through every layer, the first layer summed over
 // column parts; the same values as linear() layer by layer on the concatenated input.
 TEST(GraphOps, MlpInferenceMatchesLayerByLayer) {

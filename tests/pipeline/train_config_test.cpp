@@ -74,6 +74,9 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "optimizer": {"warmup_steps": -1}})")
                 .find("optimizer.warmup_steps"),
             std::string::npos);
+  EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"precision": "fp16"}})")
+                .find("model.precision"),
+            std::string::npos);
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 0}})")
                 .find("model.mp_per_level"),
             std::string::npos);
