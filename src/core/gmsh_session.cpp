@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "core/gmsh_elements.hpp"
 
 namespace bsms {
 

@@ -14,25 +14,9 @@
 #include <unordered_map>
 
 #include "core/error.hpp"
-#include "core/msh_reader.hpp"
+#include "core/gmsh_elements.hpp"
 
 namespace bsms {
-
-// gmsh element type codes of the simplices bsms accepts, by topological dimension.
-constexpr int kGmshLine2 = 1, kGmshTriangle3 = 2, kGmshTetrahedron4 = 4;
-
-int gmsh_simplex_type(int cell_dim) {
-  switch (cell_dim) {
-    case 1:
-      return kGmshLine2;
-    case 2:
-      return kGmshTriangle3;
-    case 3:
-      return kGmshTetrahedron4;
-    default:
-      return -1;
-  }
-}
 
 namespace {
 

@@ -64,10 +64,6 @@ struct MeshParts {
   std::vector<Group> groups;
 };
 
-// gmsh's element type code of the simplex of topological dimension `cell_dim` (1: 2-node line,
-// 2: 3-node triangle, 3: 4-node tetrahedron); -1 for any other dimension.
-int gmsh_simplex_type(int cell_dim);
-
 // The rules read_mesh applies to a gmsh model or an MSH file, defined once: `cell_dim` decides
 // the cells, which must all be 2-node lines, 3-node triangles or 4-node tetrahedra (else
 // InputError "unsupported or mixed cells of dimension ..."); nodes no cell uses are dropped and

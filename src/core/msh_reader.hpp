@@ -1,8 +1,7 @@
 // Direct reader of gmsh MSH files, versions 2.2 and 4.1, ASCII and binary (little-endian, 8-byte
-// size_t): the file is mapped and parsed in one pass with std::from_chars. 1M nodes,
-// ASCII 4.1, 2 threads: 0.10 s against 1.0 s through gmsh (bench_preprocess BM_ReadMsh, no
-// physical groups); 0.14 s against 5.5 s for a plate whose physical group holds every node.
-// Parsing is one thread (~1 GB/s); the post-processing splits its loops over threads. The
+// size_t): the file is mapped and parsed in one pass with std::from_chars, about ten times faster
+// than reading it through gmsh (bench_preprocess BM_ReadMsh; docs/results.md). Parsing is one
+// thread; the post-processing splits its loops over threads. The
 // result is the same Mesh as read_mesh_with_gmsh gives: both paths end in assemble_mesh.
 //
 // What each format contributes, as gmsh itself reads it:
@@ -36,18 +35,6 @@ class MshNotHandled : public InputError {
  public:
   using InputError::InputError;
 };
-
-// A gmsh element type as gmsh 4.8 defines it.
-struct GmshElementType {
-  int type;
-  int dim;        // topological dimension (0 point .. 3 volume)
-  int num_nodes;  // 0 for variable-size types (polygons, polyhedra, xfem)
-  const char* name;
-};
-// nullptr when gmsh 4.8 defines no such type.
-const GmshElementType* gmsh_element_type(int type);
-// gmsh's name of the type ("Triangle 6"), or "gmsh element type N".
-std::string gmsh_element_name(int type);
 
 // Whether `head`, the first bytes of a file, starts (after blank lines) with a $MeshFormat line
 // followed by version 2.2 or 4.1, i.e. whether read_mesh gives the file to read_msh.
