@@ -96,12 +96,15 @@ double relative_measure(const Mesh& mesh, int64_t c, bool signed_measure) {
   return std::sqrt(std::max(0.0, small_determinant(gram, k))) / unit;
 }
 
-// A face (sorted vertex list, unused slots -1) of a cell, with the cell's opposite vertex.
+// A face of a cell in the bucket of its smallest vertex: the face's other vertices in ascending
+// order (unused slot -1), the cell and the cell's vertex opposite the face.
 struct CellFace {
-  std::array<int64_t, 3> key;
+  std::array<int64_t, 2> rest;
   int64_t cell;
   int64_t opposite;
-  bool operator<(const CellFace& o) const { return key < o.key || (key == o.key && cell < o.cell); }
+  bool operator<(const CellFace& o) const {
+    return rest < o.rest || (rest == o.rest && cell < o.cell);
+  }
 };
 
 }  // namespace
@@ -136,59 +139,88 @@ BadCells find_bad_cells(const Mesh& mesh) {
   bad.degenerate = degenerate;
   if (full) {
     const double majority = 2 * positive >= C - bad.degenerate ? 1.0 : -1.0;
-    // Faces ordered by (key, cell): a counting sort by the smallest vertex, then a sort inside
-    // each vertex's few faces (linear in the cells; a global sort of 6M faces took ~1 s).
+    // Faces bucketed by their smallest vertex (a counting sort, linear in the cells; a global
+    // sort of 6M faces took ~1 s), then ordered by (other vertices, cell) inside each bucket of a
+    // few faces. Counting and filling are parallel over cells with atomic bucket cursors; the
+    // order inside a bucket is restored by its sort, so the result does not depend on threads.
     const int64_t n = mesh.num_nodes();
     std::vector<int64_t> start(n + 1, 0);
-    auto face_of = [&](int64_t c, int skip) {
-      CellFace f{{-1, -1, -1}, c, mesh.cells(c, skip)};
+    // The face of cell c without its vertex `skip`: its smallest vertex, and the rest.
+    auto face_of = [&](int64_t c, int skip, int64_t& smallest) {
+      std::array<int64_t, 3> v = {-1, -1, -1};
       int m = 0;
       for (int a = 0; a < k; ++a)
-        if (a != skip) f.key[m++] = mesh.cells(c, a);
+        if (a != skip) v[m++] = mesh.cells(c, a);
       for (int a = 1; a < m; ++a)  // at most 3 entries (std::sort trips -Warray-bounds)
-        for (int b = a; b > 0 && f.key[b] < f.key[b - 1]; --b) std::swap(f.key[b], f.key[b - 1]);
-      return f;
+        for (int b = a; b > 0 && v[b] < v[b - 1]; --b) std::swap(v[b], v[b - 1]);
+      smallest = v[0];
+      return CellFace{{v[1], v[2]}, c, mesh.cells(c, skip)};
     };
+#pragma omp parallel for schedule(static) if (C > 65536)
     for (int64_t c = 0; c < C; ++c) {
       if (kind[c]) continue;
-      for (int skip = 0; skip < k; ++skip) ++start[face_of(c, skip).key[0] + 1];
+      for (int skip = 0; skip < k; ++skip) {
+        int64_t smallest = 0;
+        face_of(c, skip, smallest);
+#pragma omp atomic
+        ++start[smallest + 1];
+      }
     }
     for (int64_t v = 0; v < n; ++v) start[v + 1] += start[v];
     std::vector<CellFace> faces(static_cast<size_t>(start[n]));
     {
       std::vector<int64_t> fill(start.begin(), start.end() - 1);
+#pragma omp parallel for schedule(static) if (C > 65536)
       for (int64_t c = 0; c < C; ++c) {
         if (kind[c]) continue;
         for (int skip = 0; skip < k; ++skip) {
-          const CellFace f = face_of(c, skip);
-          faces[fill[f.key[0]]++] = f;
+          int64_t smallest = 0;
+          const CellFace f = face_of(c, skip, smallest);
+          int64_t at = 0;
+#pragma omp atomic capture
+          at = fill[smallest]++;
+          faces[static_cast<size_t>(at)] = f;
         }
       }
     }
-    for (int64_t v = 0; v < n; ++v)
-      std::sort(faces.begin() + start[v], faces.begin() + start[v + 1]);
     const int d = mesh.dim;
-    auto side = [&](const CellFace& f, int64_t v) {
+    auto side = [&](int64_t x0, const CellFace& f, int64_t v) {
       // Sign of the opposite vertex relative to the face hyperplane, in the face's own frame.
       double m[3][3] = {};
-      const int64_t x0 = f.key[0];
       for (int i = 0; i < d; ++i) {
-        for (int a = 1; a < d; ++a) m[i][a - 1] = mesh.points(f.key[a], i) - mesh.points(x0, i);
+        for (int a = 1; a < d; ++a)
+          m[i][a - 1] = mesh.points(f.rest[a - 1], i) - mesh.points(x0, i);
         m[i][d - 1] = mesh.points(v, i) - mesh.points(x0, i);
       }
       return small_determinant(m, d);
     };
-    for (size_t i = 0; i + 1 < faces.size(); ++i) {
-      if (faces[i].key != faces[i + 1].key) continue;
-      const double s0 = side(faces[i], faces[i].opposite);
-      const double s1 = side(faces[i], faces[i + 1].opposite);
-      if (!(s0 * s1 > 0.0)) continue;  // opposite sides: a proper neighbour
-      for (int64_t c : {faces[i].cell, faces[i + 1].cell})
-        if (kind[c] == 0 && measure[c] * majority < 0.0) {
-          kind[c] = 2;
-          ++bad.inverted;
+    // A face two cells share with their opposite vertices on one side: the cell against the
+    // majority orientation is inverted. Found per bucket in parallel, marked after (few).
+    std::vector<int64_t> folded;
+#pragma omp parallel if (C > 65536)
+    {
+      std::vector<int64_t> mine;
+#pragma omp for schedule(dynamic, 4096) nowait
+      for (int64_t v = 0; v < n; ++v) {
+        const auto first = faces.begin() + start[v], last = faces.begin() + start[v + 1];
+        std::sort(first, last);
+        for (auto f = first; f + 1 < last; ++f) {
+          if (f->rest != (f + 1)->rest) continue;
+          const double s0 = side(v, *f, f->opposite);
+          const double s1 = side(v, *f, (f + 1)->opposite);
+          if (!(s0 * s1 > 0.0)) continue;  // opposite sides: a proper neighbour
+          for (int64_t c : {f->cell, (f + 1)->cell})
+            if (measure[c] * majority < 0.0) mine.push_back(c);
         }
+      }
+#pragma omp critical
+      folded.insert(folded.end(), mine.begin(), mine.end());
     }
+    for (int64_t c : folded)
+      if (kind[c] == 0) {
+        kind[c] = 2;
+        ++bad.inverted;
+      }
   }
   for (int64_t c = 0; c < C && bad.first < 0; ++c)
     if (kind[c]) {
