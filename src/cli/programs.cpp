@@ -37,11 +37,6 @@ constexpr HandedCommand kHanded[] = {
 
 }  // namespace
 
-const HandedCommand* handed_commands(int* count) {
-  *count = static_cast<int>(sizeof kHanded / sizeof kHanded[0]);
-  return kHanded;
-}
-
 const HandedCommand* find_handed_command(const std::string& name) {
   for (const HandedCommand& c : kHanded)
     if (name == c.name) return &c;
@@ -53,23 +48,11 @@ const char* handed_command_help(const char* name) {
   return c != nullptr ? c->help : "";
 }
 
-const char* program_file_name(Program program) {
-  switch (program) {
-    case Program::kSolver:
-      return "bsms-solver";
-    case Program::kTorch:
-      return "bsms-torch";
-    case Program::kFront:
-      break;
-  }
-  return "bsms";
-}
-
 int run_in_program(Program program) {
   namespace fs = std::filesystem;
   const std::vector<std::string>& arguments = program_arguments();
   const std::string what = arguments.size() > 1 ? "'" + one_line(arguments[1]) + "'" : "this";
-  const char* name = program_file_name(program);
+  const char* name = program == Program::kTorch ? "bsms-torch" : "bsms-solver";
   std::error_code ec;
   const fs::path self = fs::read_symlink("/proc/self/exe", ec);
   const fs::path target = self.parent_path() / name;

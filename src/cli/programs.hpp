@@ -14,7 +14,7 @@
 
 namespace bsms::cli {
 
-enum class Program { kFront, kSolver, kTorch };
+enum class Program { kSolver, kTorch };
 
 // A command the front end hands on: its name, its one-line help (the only copy: the command's
 // own registration uses it too) and the program that runs it.
@@ -24,15 +24,10 @@ struct HandedCommand {
   Program program;
 };
 
-// The commands the front end does not run itself.
-const HandedCommand* handed_commands(int* count);
 // The entry of `name`, or nullptr when the front end runs it.
 const HandedCommand* find_handed_command(const std::string& name);
 // The help line of a handed command, for its registration in the program that runs it.
 const char* handed_command_help(const char* name);
-
-// The program's file name ("bsms-solver", "bsms-torch").
-const char* program_file_name(Program program);
 
 // Executes `program` (beside this executable) in place of this process with the command line
 // program_arguments(), after setting the environment it needs. Returns only on failure, after
