@@ -330,6 +330,8 @@ GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptio
         solver_s += t.solver_wall_s;
         const int64_t finished = ++done;
         if (bar) bar->update(finished, std::to_string(t.mesh.num_nodes()) + " nodes");
+        if (options.on_progress)
+          options.on_progress(finished, static_cast<int64_t>(pending.size()));
       }
     } catch (...) {
       const std::lock_guard<std::mutex> lock(log_mutex);

@@ -15,6 +15,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,10 @@ struct GenerateOptions {
   Shard shard;            // count > 1: only this shard's parts; merge them with merge_parts
   int max_attempts = 20;  // unstable draws per trajectory before giving up (NumericalError)
   bool progress = false;  // progress bar on stderr
+  // Told after each finished trajectory (from the solving threads, one call at a time):
+  // trajectories finished by this call, trajectories it has to solve. An exception it throws
+  // stops the run as a failed solve does (finished parts stay, a rerun resumes).
+  std::function<void(int64_t done, int64_t total)> on_progress;
   // Stops after this many new parts without merging (< 0: no limit). Simulates an interrupted run.
   int64_t stop_after = -1;
 };

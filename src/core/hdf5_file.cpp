@@ -182,7 +182,10 @@ H5File::H5File(const std::string& path, Mode mode) : path_(path) {
       Handle access(H5Pcreate(H5P_FILE_ACCESS));
       if (!access.ok() || H5Pset_libver_bounds(access.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0)
         throw IoError(path + ": cannot set the HDF5 file format");
-      id_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get());
+      Handle create(H5Pcreate(H5P_FILE_CREATE));
+      if (!create.ok() || H5Pset_obj_track_times(create.get(), 0) < 0)
+        throw IoError(path + ": cannot set the HDF5 file format");
+      id_ = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, create.get(), access.get());
       if (id_ < 0) throw IoError(path + ": cannot create HDF5 file");
       writable_ = true;
       break;
@@ -195,7 +198,10 @@ H5File H5File::create_checksummed(const std::string& path) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS));
   if (!fapl.ok() || H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0)
     throw IoError(path + ": cannot set up the HDF5 file format");
-  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE));
+  if (!fcpl.ok() || H5Pset_obj_track_times(fcpl.get(), 0) < 0)
+    throw IoError(path + ": cannot set up the HDF5 file format");
+  const hid_t id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, fcpl.get(), fapl.get());
   if (id < 0) throw IoError(path + ": cannot create HDF5 file");
   return H5File(path, id, true);
 }
@@ -263,7 +269,12 @@ void H5File::create_group(const std::string& group) {
   for (const auto& part : split_path(group)) {
     walked += "/" + part;
     if (H5Lexists(id_, walked.c_str(), H5P_DEFAULT) > 0) continue;
-    Handle g(H5Gcreate2(id_, walked.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT));
+    // No modification times (here and on datasets): the same content gives the same bytes, so
+    // outputs can be compared with cmp and are reproducible.
+    Handle gcpl(H5Pcreate(H5P_GROUP_CREATE));
+    if (!gcpl.ok() || H5Pset_obj_track_times(gcpl.get(), 0) < 0)
+      throw IoError(path_ + ": cannot describe group " + walked);
+    Handle g(H5Gcreate2(id_, walked.c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT));
     if (!g.ok()) throw IoError(path_ + ": cannot create group " + walked);
   }
 }
@@ -311,7 +322,7 @@ void H5File::write(const std::string& name, const T* data, const Shape& shape, h
   if (H5Lexists(id_, name.c_str(), H5P_DEFAULT) > 0) remove(name);
   Handle space(H5Screate_simple(static_cast<int>(shape.size()), shape.data(), nullptr));
   Handle plist(H5Pcreate(H5P_DATASET_CREATE));
-  if (!space.ok() || !plist.ok())
+  if (!space.ok() || !plist.ok() || H5Pset_obj_track_times(plist.get(), 0) < 0)
     throw IoError(path_ + ": cannot describe dataset " + name + " of shape " + shape_string(shape));
   hsize_t total = 1;
   for (hsize_t s : shape) total *= s;
@@ -365,6 +376,7 @@ void H5File::write_virtual(const std::string& name, const std::string& source_fi
                           nullptr) < 0 ||
       H5Sselect_hyperslab(source.get(), H5S_SELECT_SET, start.data(), nullptr, count.data(),
                           nullptr) < 0 ||
+      H5Pset_obj_track_times(plist.get(), 0) < 0 ||
       H5Pset_fill_value(plist.get(), H5T_NATIVE_FLOAT, &fill) < 0 ||
       H5Pset_virtual(plist.get(), mapped.get(), source_file.c_str(), source_dataset.c_str(),
                      source.get()) < 0)

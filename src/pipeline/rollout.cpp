@@ -20,6 +20,7 @@
 #include "pipeline/lagrangian.hpp"
 #include "pipeline/rollout_eulerian.hpp"
 #include "pipeline/rollout_metrics.hpp"
+#include "pipeline/rollout_model.hpp"
 #include "pipeline/rollout_outputs.hpp"
 #include "pipeline/run_files.hpp"
 #include "pipeline/scene_symmetry.hpp"
@@ -105,36 +106,6 @@ std::optional<FieldRmse> rmse_over(const ErrorCurves& c, size_t steps) {
   return rmse;
 }
 
-// A Lagrangian run ready to roll out on a dataset: its model, features (walls of the data's
-// scene) and multilevel graphs. The run rolled out and each member of an ensemble.
-struct RolloutModel {
-  std::string model_type;
-  LagrangianSpec spec;
-  Seeding seeding = Seeding::kMinAve;
-  std::shared_ptr<LearnedSimulator> simulator;
-  std::unique_ptr<GraphStore> store;
-  std::unique_ptr<LagrangianAdapter> adapter;
-};
-
-RolloutModel open_model(const RunFolder& folder, const Dataset& data, const std::string& data_dir,
-                        const std::string& seeding) {
-  RolloutModel m;
-  m.model_type = folder.config.model.type;
-  m.spec = walls_for_scene(lagrangian_spec_from_json(folder.features_resolved, folder.config_path),
-                           data.scene());
-  m.simulator = std::make_shared<LearnedSimulator>(m.spec, folder.config.model, folder.levels);
-  load_checkpoint(run_checkpoint_path(folder.dir), *m.simulator, nullptr);
-  m.simulator->eval();
-  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
-                                         (fs::path(folder.dir) / "multilevel").string()};
-  std::error_code ec;
-  for (const auto& d : cache_dirs) fs::create_directories(d, ec);
-  m.seeding = seeding.empty() ? folder.config.model.seeding : parse_seeding(seeding);
-  m.store = std::make_unique<GraphStore>(m.seeding, folder.levels, cache_dirs);
-  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
-  return m;
-}
-
 // A further run of an ensemble: Lagrangian, predicting what the first run predicts.
 RolloutModel open_member(const std::string& run, const LagrangianSpec& first, const Dataset& data,
                          const std::string& data_dir, const std::string& seeding) {
@@ -150,7 +121,7 @@ RolloutModel open_member(const std::string& run, const LagrangianSpec& first, co
                      std::to_string(spec.dim) + "-D; the first run " +
                      (first.first_order ? "velocities" : "accelerations") + " in " +
                      std::to_string(first.dim) + "-D");
-  return open_model(folder, data, data_dir, seeding);
+  return open_rollout_model(folder, data, data_dir, seeding);
 }
 
 }  // namespace
@@ -182,7 +153,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                      std::to_string(data.mesh(0).dim) + ") differs from the model's " +
                      std::to_string(spec.dim) + " (mesh " + std::to_string(spec.mesh_dimension()) +
                      ")");
-  RolloutModel first = open_model(folder, data, data_dir, request.seeding);
+  RolloutModel first = open_rollout_model(folder, data, data_dir, request.seeding);
   spec = first.spec;
   std::string model_name = first.model_type;
   std::vector<RolloutModel> members;
