@@ -99,8 +99,12 @@ Batch EulerianAdapter::make_batch(const std::vector<EulerianFrame>& frames,
     const auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
     torch::Tensor state = f.state;
     if (scale.defined() && generator) {
-      const auto added = torch::randn({n, width}, *generator, torch::kFloat32) * scale *
-                         mask.unsqueeze(1).to(torch::kFloat32);
+      // Training noise on NORMAL nodes only, as MeshGraphNets' dataset.py and BSMS-GNN add it:
+      // OUTFLOW nodes are predicted and in the loss but see their true state.
+      std::vector<float> noisy(n);
+      for (int64_t i = 0; i < n; ++i) noisy[i] = mesh.node_type[i] == 0 ? 1.0f : 0.0f;
+      const auto noise_mask = torch::from_blob(noisy.data(), {n, 1}, torch::kFloat32);
+      const auto added = torch::randn({n, width}, *generator, torch::kFloat32) * scale * noise_mask;
       state = state + added;
       noises.push_back(added);
     }

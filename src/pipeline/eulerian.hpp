@@ -58,7 +58,8 @@ class EulerianAdapter {
 
   // Batch.inputs = [state, one-hot], Batch.positions = {X / position_scale}, Batch.cur = the
   // state, Batch.mask = predicted nodes. With `noise_std` (one standard deviation per state
-  // component) Gaussian noise is added to the state of predicted nodes and kept in Batch.noise,
+  // component) Gaussian noise is added to the state of NORMAL nodes (not OUTFLOW ones, which are
+  // predicted too) and kept in Batch.noise,
   // drawn from `generators`: one per frame, or one for all frames.
   Batch make_batch(const std::vector<EulerianFrame>& frames,
                    const std::vector<double>& noise_std = {},

@@ -179,6 +179,44 @@ bool same_data(const std::string& a, const std::string& b) {
   return fs::exists(a, ec) && fs::exists(b, ec) && fs::equivalent(a, b, ec);
 }
 
+// The references' rollout table (MeshGraphNets, BSMS-GNN): RMSE over the first 1, 10, 20, 50, 100,
+// 200 and all steps, each trajectory's averaged over trajectories, per run and field.
+void write_horizon_table(std::ostringstream& md, const std::vector<RunData>& runs) {
+  std::vector<std::string> horizons;
+  for (const int h : kRmseHorizons) horizons.push_back(std::to_string(h));
+  horizons.push_back("all");
+  std::vector<std::string> shown;  // horizons some run has
+  for (const std::string& h : horizons)
+    for (const auto& r : runs)
+      if (r.metrics.rmse_trajectory_mean.count(h) &&
+          std::find(shown.begin(), shown.end(), h) == shown.end())
+        shown.push_back(h);
+  if (shown.empty()) return;
+  md << "\nRMSE over the first h predicted steps, each test trajectory's averaged over the "
+        "trajectories (the convention of MeshGraphNets' and BSMS-GNN's tables; the figures above "
+        "pool trajectories and steps):\n\n| run | field |";
+  for (const std::string& h : shown) md << " RMSE-" << h << " |";
+  md << "\n|---|---|";
+  for (size_t k = 0; k < shown.size(); ++k) md << "---|";
+  md << "\n";
+  for (const auto& r : runs) {
+    const auto& table = r.metrics.rmse_trajectory_mean;
+    if (table.empty()) continue;
+    for (const auto& [field, value] : table.begin()->second.fields) {
+      (void)value;
+      md << "| " << fs::path(r.dir).filename().string() << " | " << field << " |";
+      for (const std::string& h : shown) {
+        const auto row = table.find(h);
+        md << " "
+           << (row == table.end() ? std::string("–")
+                                  : format_number(row->second.at(field), 2, Notation::kScientific))
+           << " |";
+      }
+      md << "\n";
+    }
+  }
+}
+
 // The frontier as a table, and one sentence per run: is a solver setting at least as fast as the
 // model (ms/frame <= its inference ms/step) and more accurate (lower RMSE-all)?
 void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
@@ -543,6 +581,7 @@ std::string write_report(const ReportRequest& request) {
       md << (k ? "; " : "") << (cpus[k].empty() ? "CPU not recorded" : cpus[k]);
     md << ".\n";
   }
+  write_horizon_table(md, runs);
   if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
   // What a model must beat: extrapolating the first velocity of each test trajectory.
   const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);

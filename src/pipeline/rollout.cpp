@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -198,6 +199,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   // RMSE-all split into each body's centre, rotation and deformation, model and reference.
   MotionErrorSum model_parts, inertial_parts, rigid_parts;
   TrajectoryRmse per_trajectory;
+  HorizonRmse horizons;  // the references' table: RMSE over the first h steps, per trajectory
   // Physical validity of the predicted and the true frames: overlap between bodies (cells of the
   // full dimension) and nodes outside the walls (box scenes with walls).
   const BoxWalls walls = scene_walls(data.scene(), spec.dim);
@@ -248,7 +250,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     for (size_t k = 1; k < symmetries.size(); ++k)
       mapped_meshes.push_back(symmetries[k].mesh(mesh));
     int64_t steps = 0;
-    double model_sq = 0, inertial_traj_sq = 0;  // this trajectory's sums of per-step MSE
+    double model_sq = 0, inertial_traj_sq = 0;            // this trajectory's sums of per-step MSE
+    std::map<std::string, std::vector<double>> step_mse;  // this trajectory's, for `horizons`
     for (int64_t f = 1; f + 1 < frames; ++f) {
       Stopwatch clock;
       // The state the model sees: its own frames, or the truth with teacher forcing.
@@ -339,8 +342,11 @@ RolloutMetrics rollout(const RolloutRequest& request) {
                      frame_validity->measure(target.data_ptr<float>()));
       }
       model_sq += pos_err;
+      step_mse["world_pos"].push_back(pos_err);
+      step_mse["velocity"].push_back(vel_err);
       ++steps;
     }
+    horizons.add(step_mse);
     const double inv_steps = steps > 0 ? 1.0 / static_cast<double>(steps) : 0.0;
     per_trajectory.steps.push_back(steps);
     per_trajectory.model.push_back(std::sqrt(model_sq * inv_steps));
@@ -379,6 +385,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.rmse_1 = rmse_over(curves, 1);
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());
+  metrics.rmse_trajectory_mean = horizons.result();
   if (inertial_count > 0)
     metrics.rmse_all_constant_velocity =
         std::sqrt(inertial_sq / static_cast<double>(inertial_count));

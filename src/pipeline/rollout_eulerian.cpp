@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <map>
 
 #include "core/error.hpp"
 #include "core/runtime.hpp"
@@ -67,6 +68,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
   std::vector<std::vector<double>> sq(nf), sq_hold(nf);
   std::vector<std::vector<double>> values(nf);
   rollout_outputs::RolloutTally tally;
+  HorizonRmse horizons;  // the references' table: RMSE over the first h steps, per trajectory
   ProgressBar bar("rollout " + request.split, count);
   torch::InferenceMode inference;
   for (int64_t t = 0; t < count; ++t) {
@@ -84,6 +86,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
     std::vector<torch::Tensor> pred = {truth[0]}, pred_p;
     if (spec.pressure) pred_p.push_back(truth_p[0]);
     torch::Tensor held;  // persistence: the first frame on predicted nodes, the truth elsewhere
+    std::map<std::string, std::vector<double>> step_mse;  // this trajectory's, for `horizons`
     for (int64_t f = 0; f + 1 < frames; ++f) {
       Stopwatch clock;
       const Batch batch = adapter.make_batch({EulerianFrame{&graphs, &mesh, pred[f]}});
@@ -108,6 +111,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
           values[k].resize(f + 1, 0.0);
         }
         const int64_t w = outputs[k].width;
+        const double before = sq[k][f];
         if (outputs[k].name == "pressure") {
           sq[k][f] += (pressure - truth_p[f + 1]).square().sum().item<double>();
           sq_hold[k][f] +=
@@ -121,8 +125,10 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
           c0 += w;
         }
         values[k][f] += static_cast<double>(n);
+        step_mse[outputs[k].name].push_back((sq[k][f] - before) / static_cast<double>(n * w));
       }
     }
+    horizons.add(step_mse);
     Trajectory out;
     out.mesh = mesh;
     out.seed = data.seed(t);
@@ -180,6 +186,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
   metrics.rmse_1 = rmse_over(sq, 1);
   metrics.rmse_50 = rmse_over(sq, 50);
   metrics.rmse_all = rmse_over(sq, all);
+  metrics.rmse_trajectory_mean = horizons.result();
   // What no model achieves: the first frame held on the predicted nodes.
   metrics.rmse_1_persistence = rmse_over(sq_hold, 1);
   metrics.rmse_all_persistence = rmse_over(sq_hold, all);

@@ -266,6 +266,42 @@ std::optional<RatioInterval> bootstrap_ratio_interval(const std::vector<int64_t>
   return RatioInterval{quantile(0.5 * (1 - level)), quantile(0.5 * (1 + level))};
 }
 
+void HorizonRmse::add(const std::map<std::string, std::vector<double>>& step_mse) {
+  size_t steps = 0;
+  for (const auto& [field, mse] : step_mse) steps = std::max(steps, mse.size());
+  if (steps == 0) return;
+  ++trajectories_;
+  longest_ = std::max(longest_, steps);
+  auto add_over = [&](const std::string& horizon, size_t h) {
+    for (const auto& [field, mse] : step_mse) {
+      const size_t n = std::min(h, mse.size());
+      double sum = 0.0;
+      for (size_t s = 0; s < n; ++s) sum += mse[s];
+      sums_[horizon][field] += n > 0 ? std::sqrt(sum / static_cast<double>(n)) : 0.0;
+    }
+  };
+  for (const int h : kRmseHorizons) add_over(std::to_string(h), static_cast<size_t>(h));
+  add_over("all", steps);
+}
+
+std::map<std::string, FieldRmse> HorizonRmse::result() const {
+  std::map<std::string, FieldRmse> out;
+  if (trajectories_ == 0) return out;
+  for (const auto& [horizon, fields] : sums_) {
+    if (horizon != "all" && static_cast<size_t>(std::stoi(horizon)) > longest_) continue;
+    FieldRmse rmse;
+    double squares = 0.0;
+    for (const auto& [field, sum] : fields) {
+      const double value = sum / static_cast<double>(trajectories_);
+      rmse.fields[field] = value;
+      squares += value * value;
+    }
+    rmse.total = std::sqrt(squares / static_cast<double>(fields.size()));
+    out[horizon] = rmse;
+  }
+  return out;
+}
+
 double FieldRmse::at(const std::string& field) const {
   const auto it = fields.find(field);
   return it == fields.end() ? std::nan("") : it->second;
@@ -305,6 +341,11 @@ Json to_json(const RolloutMetrics& m) {
   j["rmse_50"] = to_json(m.rmse_50);
   j["rmse_all"] = to_json(m.rmse_all);
   j["rmse_per_step"] = m.rmse_per_step;
+  if (!m.rmse_trajectory_mean.empty()) {
+    Json table = Json::object();
+    for (const auto& [horizon, rmse] : m.rmse_trajectory_mean) table[horizon] = to_json(rmse);
+    j["rmse_trajectory_mean"] = table;
+  }
   if (m.eulerian) {
     j["rmse_1_persistence"] = to_json(m.rmse_1_persistence);
     j["rmse_all_persistence"] = to_json(m.rmse_all_persistence);
@@ -374,6 +415,20 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.rmse_50 = field_rmse_from_json(r, "rmse_50");
   m.rmse_all = field_rmse_from_json(r, "rmse_all");
   m.rmse_per_step = curves_from_json(r, "rmse_per_step");
+  if (r.has("rmse_trajectory_mean")) {
+    const Json& table = r.raw("rmse_trajectory_mean");
+    const JsonContext where = r.context("rmse_trajectory_mean");
+    require(table.is_object(), where, "an object of horizons (\"1\", ..., \"all\")");
+    JsonObjectReader t(table, where);
+    for (const auto& item : table.items()) {
+      const std::string& h = item.key();
+      bool known = h == "all";
+      for (const int k : kRmseHorizons) known = known || h == std::to_string(k);
+      require(known, where,
+              "horizons 1, 10, 20, 50, 100, 200 and all (not " + truncate_for_message(h) + ")");
+      if (auto rmse = field_rmse_from_json(t, h)) m.rmse_trajectory_mean[h] = *rmse;
+    }
+  }
   if (m.eulerian) {
     m.rmse_1_persistence = field_rmse_from_json(r, "rmse_1_persistence");
     m.rmse_all_persistence = field_rmse_from_json(r, "rmse_all_persistence");

@@ -22,6 +22,25 @@ struct FieldRmse {
   double at(const std::string& field) const;  // NaN when the field is absent
 };
 
+// The references' rollout table (MeshGraphNets' cfd_eval.py and cloth_eval.py, BSMS-GNN's
+// evaluation): per field, the RMSE over a trajectory's first h predicted steps (all of them when it
+// has fewer), averaged over the trajectories with equal weight, for h in kRmseHorizons and "all".
+// A step's squared error is the mean over all nodes and components, as theirs is.
+inline constexpr int kRmseHorizons[] = {1, 10, 20, 50, 100, 200};
+class HorizonRmse {
+ public:
+  // One trajectory: per field, the mean squared error at each predicted step (at least one).
+  void add(const std::map<std::string, std::vector<double>>& step_mse);
+  // "1", "10", ..., "200" up to the longest trajectory's steps, and "all"; empty without any
+  // trajectory. "total" is the RMS of the fields' figures.
+  std::map<std::string, FieldRmse> result() const;
+
+ private:
+  std::map<std::string, std::map<std::string, double>> sums_;  // horizon -> field -> sum of RMSE
+  int64_t trajectories_ = 0;
+  size_t longest_ = 0;
+};
+
 // RMSE-all split by where each body's error lies (pipeline/body_motion_error.hpp): its centre,
 // its rotation about the centre and its deformation; the squares of the three add up to the
 // square of the position RMSE-all.
@@ -118,6 +137,10 @@ struct RolloutMetrics {
   // RMSE of each predicted step per field (Lagrangian: world_pos only).
   std::optional<FieldRmse> rmse_1, rmse_50, rmse_all;
   std::map<std::string, std::vector<double>> rmse_per_step;
+  // HorizonRmse's table ("rmse_trajectory_mean": {"1": {field: RMSE, ..., "total"}, ..., "all"}):
+  // the figures comparable with the references', beside the pooled rmse_1/rmse_50/rmse_all above
+  // (each (trajectory, step) pair weighted equally). Empty in files written before it existed.
+  std::map<std::string, FieldRmse> rmse_trajectory_mean;
   // Lagrangian: RMSE-all of extrapolating the first velocity (the reference a model must beat),
   // and the fraction of predicted cells turned inside out against the first frame.
   std::optional<double> rmse_all_constant_velocity;

@@ -33,6 +33,8 @@ RolloutMetrics lagrangian_metrics() {
   m.rmse_50 = one;
   m.rmse_all = one;
   m.rmse_per_step["world_pos"] = {1e-3, 2e-3, std::nan("")};  // a non-finite step
+  m.rmse_trajectory_mean["1"] = one;
+  m.rmse_trajectory_mean["all"] = one;
   m.rmse_all_constant_velocity = 0.5;
   m.rmse_all_parts = MotionRmse{6e-4, 2e-4, 7.75e-4};
   m.rmse_all_parts_constant_velocity = MotionRmse{0.45, 0.2, 0.1};
@@ -127,6 +129,40 @@ TEST(RolloutMetricsFile, RoundTripsThroughTheFile) {
   // nlohmann's conversion: the Json callers of rollout() hold.
   const Json implicit = m;
   EXPECT_EQ(implicit.dump(), to_json(m).dump());  // (NaN != NaN: compare the text)
+}
+
+// The references' table by hand: per trajectory the RMSE over its first h steps, then the plain
+// mean over trajectories; horizons past the longest trajectory are left out.
+TEST(HorizonRmse, AveragesEachTrajectorysRmseOverItsFirstSteps) {
+  HorizonRmse table;
+  EXPECT_TRUE(table.result().empty());
+  // Trajectory a: 12 steps, MSE 1 on steps 0..9 and 16 after; b: 3 steps of MSE 4.
+  std::vector<double> a(12, 1.0);
+  a[10] = a[11] = 16.0;
+  table.add({{"world_pos", a}, {"velocity", std::vector<double>(12, 9.0)}});
+  table.add({{"world_pos", {4.0, 4.0, 4.0}}, {"velocity", {0.0, 0.0, 0.0}}});
+  const auto r = table.result();
+  ASSERT_EQ(r.size(), 3u);  // "1", "10", "all": 20 and more exceed 12 steps
+  EXPECT_DOUBLE_EQ(r.at("1").at("world_pos"), (1.0 + 2.0) / 2);
+  EXPECT_DOUBLE_EQ(r.at("10").at("world_pos"), (1.0 + 2.0) / 2);  // b: its 3 steps
+  EXPECT_DOUBLE_EQ(r.at("all").at("world_pos"), (std::sqrt((10.0 + 32.0) / 12) + 2.0) / 2);
+  EXPECT_DOUBLE_EQ(r.at("all").at("velocity"), (3.0 + 0.0) / 2);
+  const double pos = r.at("all").at("world_pos"), vel = r.at("all").at("velocity");
+  EXPECT_DOUBLE_EQ(r.at("all").total, std::sqrt((pos * pos + vel * vel) / 2));
+}
+
+TEST(RolloutMetricsFile, HorizonTableRoundTripsAndIsChecked) {
+  const Json written = Json::parse(to_json(lagrangian_metrics()).dump());
+  ASSERT_TRUE(written.contains("rmse_trajectory_mean"));
+  EXPECT_EQ(written["rmse_trajectory_mean"]["all"]["world_pos"], 1e-3);
+  const RolloutMetrics back = rollout_metrics_from_json(written, "metrics.json");
+  EXPECT_EQ(back.rmse_trajectory_mean.size(), 2u);
+  Json bad = written;
+  bad["rmse_trajectory_mean"]["7"] = bad["rmse_trajectory_mean"]["1"];
+  EXPECT_NE(metrics_error(bad).find("rmse_trajectory_mean"), std::string::npos);
+  Json older = written;  // written before the table existed
+  older.erase("rmse_trajectory_mean");
+  EXPECT_TRUE(rollout_metrics_from_json(older, "metrics.json").rmse_trajectory_mean.empty());
 }
 
 TEST(RolloutMetricsFile, ReaderIsStrictAndNamesFileAndKey) {
