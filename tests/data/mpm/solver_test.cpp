@@ -98,7 +98,7 @@ TEST(VibratingBar, CellCrossingErrorOfLinearFemAndUmlsWithoutEta) {
       100 * umls.com, 100 * umls.stress, 100 * no_eta.com, 100 * no_eta.stress, 100 * bspline.com,
       100 * bspline.stress, fem.c_str());
   EXPECT_LT(umls.stress, 0.05);
-  // Measured 2026-11-23: centre of mass / stress 0.536 / 0.697 % (UMLS), 0.510 / 0.592 % (no eta),
+  // Measured: centre of mass / stress 0.536 / 0.697 % (UMLS), 0.510 / 0.592 % (no eta),
   // 0.461 / 0.641 % (B-spline lattice). On this bar the eta term is within noise of UMLS (its
   // benefit shows in the kernel-level jump test), and the smooth lattice kernel is as accurate:
   // all three stay within 1.5x of each other, far below linear FEM.
