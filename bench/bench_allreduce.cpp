@@ -19,8 +19,8 @@
 #include <vector>
 
 #include "core/runtime.hpp"
-#include "pipeline/distributed.hpp"
-#include "pipeline/simulator.hpp"
+#include "pipeline/distributed/distributed.hpp"
+#include "pipeline/adapters/simulator.hpp"
 
 namespace {
 

@@ -31,7 +31,7 @@
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
 #include "models/networks.hpp"
-#include "pipeline/multilevel_tensors.hpp"
+#include "pipeline/graphs/multilevel_tensors.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace {

@@ -18,7 +18,7 @@
 #include "data/generate/family.hpp"
 #include "data/mpm/scene_config.hpp"
 #include "data/mpm/scene_size.hpp"
-#include "pipeline/train_config.hpp"
+#include "pipeline/runs/train_config.hpp"
 #include "seeds.hpp"
 
 namespace {

@@ -1,6 +1,6 @@
 // Index tensors of (batched) multilevel graphs, precomputed once per mesh for the graph kernels.
 // Built from core's CSR graphs and plain arrays only: the bi-stride MultilevelGraph of preprocess/
-// becomes MultilevelTensors in src/pipeline/multilevel_tensors.hpp, a proximity hierarchy in
+// becomes MultilevelTensors in src/pipeline/graphs/multilevel_tensors.hpp, a proximity hierarchy in
 // models/proximity_multilevel.hpp.
 #pragma once
 

@@ -11,10 +11,10 @@
 #include "core/physical_projection.hpp"
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
-#include "pipeline/rollout.hpp"
-#include "pipeline/rollout_metrics.hpp"
-#include "pipeline/rollout_model.hpp"
-#include "pipeline/run_files.hpp"
+#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
+#include "pipeline/rollout/rollout_model.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace bsms::python {
 namespace {

@@ -5,9 +5,9 @@
 #include "cli/command.hpp"
 #include "cli/programs.hpp"
 #include "core/error.hpp"
-#include "pipeline/legacy_checkpoint.hpp"
-#include "pipeline/simulator.hpp"
-#include "pipeline/trainer.hpp"
+#include "pipeline/train/legacy_checkpoint.hpp"
+#include "pipeline/adapters/simulator.hpp"
+#include "pipeline/train/trainer.hpp"
 
 namespace {
 

@@ -11,7 +11,7 @@
 #include "pipeline/experiments/heat_sticks.hpp"
 #include "pipeline/experiments/predictability.hpp"
 #include "pipeline/experiments/solver_frontier.hpp"
-#include "pipeline/number_format.hpp"
+#include "pipeline/report/number_format.hpp"
 
 namespace {
 

@@ -18,7 +18,7 @@
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/tfrecord.hpp"
 #include "models/checkpoint_format.hpp"
-#include "pipeline/run_files.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace {
 

@@ -14,7 +14,7 @@
 #include "core/one_line.hpp"
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
-#include "pipeline/graph_cache.hpp"
+#include "pipeline/graphs/graph_cache.hpp"
 #include "preprocess/multilevel_file.hpp"
 #include "preprocess/multilevel_graph.hpp"
 

@@ -2,7 +2,7 @@
 #include <iostream>
 
 #include "cli/command.hpp"
-#include "pipeline/report.hpp"
+#include "pipeline/report/report.hpp"
 
 namespace {
 

@@ -3,8 +3,8 @@
 #include "cli/command.hpp"
 #include "cli/programs.hpp"
 #include "core/physical_projection.hpp"
-#include "pipeline/rollout.hpp"
-#include "pipeline/rollout_outputs.hpp"
+#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/rollout/rollout_outputs.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace {

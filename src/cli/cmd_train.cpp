@@ -9,8 +9,8 @@
 #include "cli/programs.hpp"
 #include "core/error.hpp"
 #include "core/runtime.hpp"
-#include "pipeline/distributed.hpp"
-#include "pipeline/trainer.hpp"
+#include "pipeline/distributed/distributed.hpp"
+#include "pipeline/train/trainer.hpp"
 
 namespace {
 

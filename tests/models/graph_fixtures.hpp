@@ -110,7 +110,7 @@ inline ReferenceMultilevel reference_multilevel(const CsrGraph& mesh_graph, int 
   return out;
 }
 
-// The tensors of a reference multilevel graph, assembled as src/pipeline/multilevel_tensors.hpp
+// The tensors of a reference multilevel graph, assembled as src/pipeline/graphs/multilevel_tensors.hpp
 // assembles them from a MultilevelGraph (transitions[0] empty, transitions[k] joins k-1 and k).
 inline MultilevelTensors reference_tensors(const ReferenceMultilevel& graph) {
   MultilevelTensors h;

@@ -448,7 +448,7 @@ TEST(MultilevelTensors, MergeIsBlockDiagonal) {
   EXPECT_THROW(merge_multilevel_tensors({&h1, &h3}), InputError);
 }
 
-// MultilevelTensorCache (src/pipeline/multilevel_tensors.hpp) is tested in tests/pipeline.
+// MultilevelTensorCache (src/pipeline/graphs/multilevel_tensors.hpp) is tested in tests/pipeline.
 TEST(MultilevelTensors, ExtraEdgeSets) {
   auto mesh = testing::grid_mesh(4, 4);
   const auto h = testing::reference_tensors(testing::reference_multilevel(mesh.graph, 3));

@@ -1,6 +1,6 @@
 // The rollout animation's pieces: which edges it draws and the per-frame error it prints; and the
 // GIF reader the report tests count frames with.
-#include "pipeline/animation.hpp"
+#include "pipeline/report/animation.hpp"
 
 #include <gtest/gtest.h>
 

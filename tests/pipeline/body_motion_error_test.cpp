@@ -1,8 +1,8 @@
 // The rollout's split of position error into each body's centre, rotation and deformation
-// (pipeline/body_motion_error.hpp): rigid motions land in centre and rotation only, the parts add
+// (pipeline/rollout/body_motion_error.hpp): rigid motions land in centre and rotation only, the parts add
 // up to the position MSE, the deformation is the minimum over rotations (against a brute-force
 // search), and a mirror image is not a rotation.
-#include "pipeline/body_motion_error.hpp"
+#include "pipeline/rollout/body_motion_error.hpp"
 
 #include <gtest/gtest.h>
 

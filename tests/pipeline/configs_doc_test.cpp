@@ -17,7 +17,7 @@
 #include "core/config.hpp"
 #include "data/generate/family.hpp"
 #include "data/mpm/scene_config.hpp"
-#include "pipeline/train_config.hpp"
+#include "pipeline/runs/train_config.hpp"
 
 namespace bsms {
 namespace configs_doc {

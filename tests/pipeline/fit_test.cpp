@@ -1,5 +1,5 @@
 // The shared optimisation loop (pipeline/fit): schedule, stops, resume and the finite-loss check.
-#include "pipeline/fit.hpp"
+#include "pipeline/train/fit.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>

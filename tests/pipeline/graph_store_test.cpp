@@ -1,6 +1,6 @@
 // The multilevel-graph cache of training and rollout: damaged entries and unwritable folders are
 // said on one line (never silently), and random seeding's graphs are cached per seed.
-#include "pipeline/graph_store.hpp"
+#include "pipeline/graphs/graph_store.hpp"
 
 #include <gtest/gtest.h>
 

@@ -11,10 +11,10 @@
 
 #include "core/error.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
-#include "pipeline/lagrangian.hpp"
-#include "pipeline/rollout.hpp"
-#include "pipeline/rollout_metrics.hpp"
-#include "pipeline/trainer.hpp"
+#include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
+#include "pipeline/train/trainer.hpp"
 #include "plate_data.hpp"
 
 namespace bsms {

@@ -1,7 +1,7 @@
 // Features and targets of the Lagrangian adapter: the strain channel, the
 // contact pairs, the noise correction factor, the learning-rate schedule and momentum
 // conservation on free bodies.
-#include "pipeline/lagrangian.hpp"
+#include "pipeline/adapters/lagrangian.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
@@ -17,7 +17,7 @@
 #include "data/generate/family.hpp"
 #include "data/generate/trajectory_solver.hpp"
 #include "models/layers.hpp"
-#include "pipeline/train_config.hpp"
+#include "pipeline/runs/train_config.hpp"
 #include "plate_data.hpp"
 
 namespace bsms {

@@ -1,6 +1,6 @@
 // A bi-stride multilevel graph (preprocess/) as model tensors (models/): the tensors hold the
 // builder's edges and transition weights exactly, and the per-mesh cache builds each mesh once.
-#include "pipeline/multilevel_tensors.hpp"
+#include "pipeline/graphs/multilevel_tensors.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>

@@ -14,7 +14,7 @@
 #include "data/generate/family.hpp"
 #include "data/generate/generator.hpp"
 #include "pipeline/experiments/predictability.hpp"
-#include "pipeline/rollout_metrics.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
 
 namespace {
 

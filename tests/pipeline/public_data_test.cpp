@@ -11,10 +11,10 @@
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
-#include "pipeline/eulerian.hpp"
-#include "pipeline/rollout.hpp"
-#include "pipeline/train_stats.hpp"
-#include "pipeline/trainer.hpp"
+#include "pipeline/adapters/eulerian.hpp"
+#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/runs/train_stats.hpp"
+#include "pipeline/train/trainer.hpp"
 
 namespace bsms {
 namespace {

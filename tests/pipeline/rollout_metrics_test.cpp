@@ -1,7 +1,7 @@
-// RUN/rollout/metrics.json (pipeline/rollout_metrics.hpp): what bsms rollout writes its reader
+// RUN/rollout/metrics.json (pipeline/runs/rollout_metrics.hpp): what bsms rollout writes its reader
 // reads back unchanged (NaN as null), and a missing, mistyped or unknown key is one InputError
 // naming the file and the key.
-#include "pipeline/rollout_metrics.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
 
 #include <gtest/gtest.h>
 

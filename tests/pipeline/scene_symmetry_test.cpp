@@ -1,6 +1,6 @@
 // The symmetries of box scenes (counted against the group orders a square, a rectangle, a cube,
 // gravity and unequal walls leave) and their action on points, vectors and meshes.
-#include "pipeline/scene_symmetry.hpp"
+#include "pipeline/rollout/scene_symmetry.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>

@@ -17,10 +17,10 @@
 #include "data/generate/generator.hpp"
 #include "pipeline/experiments/node_interpolation.hpp"
 #include "pipeline/experiments/solver_frontier.hpp"
-#include "pipeline/report.hpp"
-#include "pipeline/rollout_metrics.hpp"
-#include "pipeline/run_files.hpp"
-#include "pipeline/train_log.hpp"
+#include "pipeline/report/report.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
+#include "pipeline/runs/run_files.hpp"
+#include "pipeline/runs/train_log.hpp"
 
 // A named namespace: the test target is a unity build, and other files' helpers (fresh_dir, ...)
 // share its translation units.

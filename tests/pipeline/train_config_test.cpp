@@ -1,4 +1,4 @@
-#include "pipeline/train_config.hpp"
+#include "pipeline/runs/train_config.hpp"
 
 #include <gtest/gtest.h>
 

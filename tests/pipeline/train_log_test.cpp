@@ -1,8 +1,8 @@
-// RUN/train_log.csv (pipeline/train_log.hpp): rows written by the trainer's formatter read back
+// RUN/train_log.csv (pipeline/runs/train_log.hpp): rows written by the trainer's formatter read back
 // unchanged; a torn last line is left out, a malformed row is one InputError naming the file and
 // the line; logs written before the valid_baseline column still read; the plotted trailing
 // mean of the loss equals the mean computed window by window.
-#include "pipeline/train_log.hpp"
+#include "pipeline/runs/train_log.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

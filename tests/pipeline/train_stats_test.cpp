@@ -1,7 +1,7 @@
-// RUN/train_stats.json (pipeline/train_stats.hpp): what bsms train writes its reader reads back
+// RUN/train_stats.json (pipeline/runs/train_stats.hpp): what bsms train writes its reader reads back
 // unchanged (a non-finite loss as null, read back as NaN), and a missing, mistyped, impossible or
 // unknown key is one InputError naming the file and the key.
-#include "pipeline/train_stats.hpp"
+#include "pipeline/runs/train_stats.hpp"
 
 #include <gtest/gtest.h>
 

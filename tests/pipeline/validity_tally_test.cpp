@@ -1,7 +1,7 @@
-// Physical validity of rollouts (pipeline/validity_tally.hpp and RolloutMetrics::validity): the
+// Physical validity of rollouts (pipeline/rollout/validity_tally.hpp and RolloutMetrics::validity): the
 // walls read from a scene, the tally's per-step means, per-trajectory and overall worst values,
 // and the metrics.json round trip with its strict reader.
-#include "pipeline/validity_tally.hpp"
+#include "pipeline/rollout/validity_tally.hpp"
 
 #include <gtest/gtest.h>
 

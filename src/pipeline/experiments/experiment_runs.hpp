@@ -11,7 +11,7 @@
 
 #include "core/config.hpp"
 #include "pipeline/experiments/hard_cases.hpp"
-#include "pipeline/rollout_metrics.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
 
 namespace bsms::experiments {
 

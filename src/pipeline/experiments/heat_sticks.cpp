@@ -19,11 +19,11 @@
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
 #include "models/proximity_multilevel.hpp"
-#include "pipeline/fit.hpp"
-#include "pipeline/number_format.hpp"
-#include "pipeline/plotting.hpp"
-#include "pipeline/run_files.hpp"
-#include "pipeline/train_config.hpp"
+#include "pipeline/train/fit.hpp"
+#include "pipeline/report/number_format.hpp"
+#include "pipeline/report/plotting.hpp"
+#include "pipeline/runs/run_files.hpp"
+#include "pipeline/runs/train_config.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {

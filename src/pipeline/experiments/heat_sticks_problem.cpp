@@ -8,7 +8,7 @@
 #include "core/error.hpp"
 #include "core/graph.hpp"
 #include "models/proximity_multilevel.hpp"
-#include "pipeline/multilevel_tensors.hpp"
+#include "pipeline/graphs/multilevel_tensors.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {

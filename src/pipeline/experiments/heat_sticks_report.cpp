@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "pipeline/experiments/heat_sticks.hpp"
-#include "pipeline/number_format.hpp"
+#include "pipeline/report/number_format.hpp"
 
 namespace bsms {
 namespace {

@@ -13,10 +13,10 @@
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
-#include "pipeline/number_format.hpp"
-#include "pipeline/plotting.hpp"
-#include "pipeline/rollout.hpp"
-#include "pipeline/run_files.hpp"
+#include "pipeline/report/number_format.hpp"
+#include "pipeline/report/plotting.hpp"
+#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;

@@ -25,11 +25,11 @@
 #include "data/generate/family.hpp"
 #include "data/generate/rng.hpp"
 #include "data/generate/trajectory_solver.hpp"
-#include "pipeline/body_motion_error.hpp"
+#include "pipeline/rollout/body_motion_error.hpp"
 #include "pipeline/experiments/experiment_runs.hpp"
-#include "pipeline/number_format.hpp"
-#include "pipeline/rollout_metrics.hpp"
-#include "pipeline/run_files.hpp"
+#include "pipeline/report/number_format.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;

@@ -19,10 +19,10 @@
 #include "data/generate/trajectory_solver.hpp"
 #include "data/mpm/scene_config.hpp"
 #include "pipeline/experiments/node_interpolation.hpp"
-#include "pipeline/json_measures.hpp"
-#include "pipeline/number_format.hpp"
-#include "pipeline/rollout_outputs.hpp"
-#include "pipeline/run_files.hpp"
+#include "pipeline/runs/json_measures.hpp"
+#include "pipeline/report/number_format.hpp"
+#include "pipeline/rollout/rollout_outputs.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;

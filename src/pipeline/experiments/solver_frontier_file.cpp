@@ -7,7 +7,7 @@
 
 #include "core/error.hpp"
 #include "pipeline/experiments/solver_frontier.hpp"
-#include "pipeline/json_measures.hpp"
+#include "pipeline/runs/json_measures.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;

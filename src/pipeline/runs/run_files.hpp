@@ -1,0 +1,45 @@
+// Small files of a run or report folder, written atomically.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "core/config.hpp"
+#include "pipeline/runs/train_config.hpp"
+#include "pipeline/runs/train_stats.hpp"
+
+namespace bsms {
+
+// Files of a run folder (docs/design.md "Runs").
+std::string run_config_path(const std::string& run);
+std::string run_checkpoint_path(const std::string& run);
+std::string run_log_path(const std::string& run);
+std::string run_stats_path(const std::string& run);
+// The LibTorch checkpoint older bsms wrote beside `path` (RUN/checkpoints/latest.pt for
+// RUN/checkpoints/latest.h5; empty for other names), and the one line that refuses it.
+std::string legacy_checkpoint_path(const std::string& path);
+std::string legacy_checkpoint_message(const std::string& legacy_path);
+
+void write_json_atomic(const std::string& path, const Json& value);
+void write_text_atomic(const std::string& path, const std::string& text);
+
+// A trained run's folder (`bsms train --out RUN`). RUN/config.json holds the validated training
+// config, the level count the model was built with and the features resolved from the training
+// data. This is the one reader of that file (rollout, train --resume and the experiments use it):
+// strict, a missing folder, file or key is an InputError naming it.
+struct RunFolder {
+  std::string dir;
+  std::string config_path;  // RUN/config.json
+  TrainConfig config;
+  int levels = 0;
+  int world_size = 1;  // the ranks of the last session
+  Json features_resolved;
+  // RUN/train_stats.json, read and checked with the rest (none before a session has finished):
+  // a damaged one is reported before any work, not after a rollout or a resumed training.
+  std::optional<TrainStats> stats;
+
+  static RunFolder open(const std::string& dir);
+  std::string label() const;  // "<folder name> (<model type>)", for tables and plot keys
+};
+
+}  // namespace bsms

@@ -1,0 +1,84 @@
+// What bsms train takes from its data (trainer.cpp): the model the training data decides
+// (kind, dimensions, node types, position scale, contact, walls, momentum, levels), the samples
+// of a step (deterministic in seed, step and slot, so that a resumed or data-parallel run draws
+// what one uninterrupted rank would) and their batch and target.
+#pragma once
+
+#include <ATen/core/Generator.h>
+#include <torch/types.h>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/config.hpp"
+#include "data/dataset/dataset.hpp"
+#include "pipeline/adapters/eulerian.hpp"
+#include "pipeline/graphs/graph_store.hpp"
+#include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/rollout/scene_symmetry.hpp"
+#include "pipeline/adapters/simulator.hpp"
+#include "pipeline/runs/train_config.hpp"
+
+namespace bsms {
+
+// One training sample: frame t of a trajectory (predicting t+1 from t-1 and t).
+struct SampleRef {
+  int64_t trajectory;
+  int64_t frame;  // t: uses t-1, t, t+1
+};
+
+// Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
+// Data-parallel rank r of N draws slots r*b .. r*b+b-1 of the N*b of a step, so that N ranks of
+// batch size b train on the samples (and noise: noise_seed) of one rank of batch size N*b.
+SampleRef draw_sample(const Dataset& data, uint64_t seed, int64_t step, int slot);
+
+// The training noise of slot `slot` of step `step`: one generator per sample.
+uint64_t noise_seed(uint64_t seed, int64_t step, int slot);
+
+// What the data decides: the kind of model, dimensions, node types, position scale, contact,
+// walls, momentum conservation, levels.
+struct ResolvedModel {
+  bool eulerian = false;  // fields on a fixed mesh (velocity, no world_pos)
+  LagrangianSpec spec;
+  EulerianSpec eulerian_spec;
+  int levels = 1;
+  std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
+  double momentum_residual = -1;  // measured on the training data when on
+  // features.augment "symmetries": the data's scene symmetries (identity first), one of which
+  // maps each noisy training sample; empty when off.
+  std::vector<BoxSymmetry> augment;
+
+  Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
+  ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
+};
+// InputError when the training data cannot train a model (no world_pos or velocity field, mixed
+// mesh dimensions, trajectories shorter than 3 frames) or cannot be augmented as asked (an
+// Eulerian dataset, or a scene with no symmetry but the identity).
+ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data);
+
+// One training or validation batch and its target.
+struct TrainBatch {
+  Batch batch;
+  torch::Tensor target;
+};
+
+// The model's prediction for a batch (Lagrangian: acceleration or velocity), without gradient.
+using Predictor = std::function<torch::Tensor(const Batch&)>;
+
+// The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
+// of refs[k] is drawn from generators[k] (no noise without generators). With a predictor and
+// config.features.pushforward = u > 0 (Lagrangian data), sample (trajectory, t) starts from the
+// truth at frames t-1-u' and t-u' (u' = min(u, t-1)) and is rolled out by the predictor to frame
+// t; the noise is added to that state and the target is the truth's next frame, corrected by
+// (1 - noise_gamma) times noise plus drift (Batch::noise), or with pushforward_target
+// "acceleration" the frame's own noisy target, as if the state had not drifted. With r.augment,
+// each noisy sample (state, truth and mesh positions) is then mapped by one of its symmetries,
+// drawn from the sample's generator after its noise.
+TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
+                            GraphStore& store, const std::vector<SampleRef>& refs,
+                            std::vector<at::Generator>* generators,
+                            const Predictor* predictor = nullptr);
+
+}  // namespace bsms
