@@ -77,16 +77,10 @@ Mesh mesh_from_arrays(const py::handle& positions, const py::handle& cells) {
                      shape_text(c));
   const auto pd = as_contiguous<double>(p);
   const auto ci = as_contiguous<int64_t>(c);
-  Mesh mesh;
-  mesh.dim = static_cast<int>(p.shape(1));
-  mesh.cell_dim = static_cast<int>(c.shape(1)) - 1;
-  mesh.points = Eigen::Map<const RowMatrixXd>(pd.data(), p.shape(0), p.shape(1));
-  mesh.cells = Eigen::Map<const RowMatrixXi64>(ci.data(), c.shape(0), c.shape(1));
-  mesh.node_tags.resize(static_cast<size_t>(mesh.points.rows()));
-  for (size_t i = 0; i < mesh.node_tags.size(); ++i)
-    mesh.node_tags[i] = static_cast<int64_t>(i + 1);
-  validate_mesh(mesh, "positions/cells");
-  return mesh;
+  return make_mesh(static_cast<int>(p.shape(1)),
+                   Eigen::Map<const RowMatrixXd>(pd.data(), p.shape(0), p.shape(1)),
+                   Eigen::Map<const RowMatrixXi64>(ci.data(), c.shape(0), c.shape(1)),
+                   "positions/cells");
 }
 
 void check_output_file(const std::string& path) {

@@ -213,7 +213,7 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
   return mesh;
 }
 
-Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells) {
+Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells, const std::string& context) {
   Mesh mesh;
   mesh.dim = dim;
   mesh.cell_dim = static_cast<int>(cells.cols()) - 1;
@@ -221,7 +221,7 @@ Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells) {
   mesh.cells = std::move(cells);
   mesh.node_tags.resize(mesh.points.rows());
   std::iota(mesh.node_tags.begin(), mesh.node_tags.end(), 1);
-  validate_mesh(mesh, "mesh");
+  validate_mesh(mesh, context);
   return mesh;
 }
 

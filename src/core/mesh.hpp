@@ -74,8 +74,10 @@ struct MeshParts {
 // node without coordinates, is an InputError. `context` prefixes messages (the file name).
 Mesh assemble_mesh(MeshParts parts, const std::string& context);
 
-// Builds a mesh from in-memory arrays (validated like a file); used by tests and scene builders.
-Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells);
+// Builds a mesh from in-memory arrays (validated like a file; `context` prefixes messages); used by
+// tests, scene builders and the Python module.
+Mesh make_mesh(int dim, RowMatrixXd points, RowMatrixXi64 cells,
+               const std::string& context = "mesh");
 
 // Checks finiteness, index ranges, degenerate cells (mesh_checks.cpp); InputError with `context`.
 void validate_mesh(const Mesh& mesh, const std::string& context);
