@@ -335,6 +335,11 @@ DatasetLayout Dataset::layout() const {
 bool Dataset::is_public_layout() const {
   return impl_->public_layout;
 }
+// Public data keeps its own codes, also in bsms files converted from it or rolled out on it
+// (their scene is "{}").
+bool Dataset::has_simulated_node_types() const {
+  return !impl_->public_layout && impl_->scene != "{}";
+}
 double Dataset::collision_radius() const {
   return impl_->collision_radius;
 }
@@ -385,12 +390,10 @@ int64_t Dataset::num_frames(int64_t t) const {
   return static_cast<int64_t>(field_shape(f, impl_->prefix(t) + impl_->fields[0].name)[0]);
 }
 
-namespace {
-
-// The checks every dataset mesh passes where it is read, naming the file and the trajectory:
-// shapes, finite positions inside the bound, cells of distinct in-range nodes, node types in
-// their set. Later stages (graphs, one-hot inputs, the solver's mesh checks) may then trust them.
-void check_mesh(const TrajectoryMesh& m, const std::string& where, bool bsms_node_types) {
+// Where a dataset's mesh is read (Dataset::mesh), naming the file and the trajectory, so that later
+// stages (graphs, one-hot inputs, the solver's mesh checks) may trust it.
+void check_trajectory_mesh(const TrajectoryMesh& m, const std::string& where,
+                           bool bsms_node_types) {
   if (m.dim < 1 || m.dim > 3)
     throw InputError(where + ": mesh_pos has " + std::to_string(m.dim) +
                      " components per node, expected 1 to 3");
@@ -436,8 +439,6 @@ void check_mesh(const TrajectoryMesh& m, const std::string& where, bool bsms_nod
       throw InputError(where + ": body_id of node " + std::to_string(i) + " is " +
                        std::to_string(m.body_id[i]) + ", expected >= 0");
 }
-
-}  // namespace
 
 std::string Dataset::describe(int64_t t) const {
   const std::string file =
@@ -488,7 +489,7 @@ const TrajectoryMesh& Dataset::mesh(int64_t t) const {
       m.body_id.assign(n, 0);
     }
   }
-  check_mesh(m, describe(t), !impl_->public_layout && impl_->scene != "{}");
+  check_trajectory_mesh(m, describe(t), has_simulated_node_types());
   return impl_->meshes.emplace(t, std::move(m)).first->second;
 }
 

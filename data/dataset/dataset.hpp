@@ -78,6 +78,13 @@ double value_bound(const std::string& field);
 void check_field_values(const float* values, size_t count, int64_t nodes, int64_t width,
                         int64_t first_frame, const std::string& where, const std::string& field);
 
+// The checks every dataset mesh passes where it is read (Dataset::mesh), for a mesh from elsewhere
+// (the Python module's arrays): shapes, finite positions inside the bound, cells of distinct
+// in-range nodes, node types in their set (NodeType when `simulated_node_types`, else public
+// codes up to kMaxPublicNodeType), body ids >= 0. InputError prefixed with `where`.
+void check_trajectory_mesh(const TrajectoryMesh& mesh, const std::string& where,
+                           bool simulated_node_types);
+
 // Writes a bsms dataset file atomically (temporary name, renamed by commit()); dataset_writer.cpp.
 class DatasetWriter {
  public:
@@ -129,6 +136,9 @@ class Dataset {
   const std::string& location() const;
   DatasetLayout layout() const;
   bool is_public_layout() const;  // every layout but kBsms
+  // Node types are bsms's NodeType (simulated data), not public codes: what check_trajectory_mesh
+  // checks this dataset's meshes against.
+  bool has_simulated_node_types() const;
   // Spatial dimension of the dynamic positions: world_pos width when present, else mesh_pos
   // width (cloth: mesh_pos 2-D, world_pos 3-D; TrajectoryMesh::dim stays the mesh_pos width).
   int dim() const;

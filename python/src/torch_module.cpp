@@ -2,9 +2,8 @@
 // a good part of a second to load.
 #include <torch/torch.h>
 
-#include <dlfcn.h>
-
 #include <filesystem>
+#include <limits>
 #include <string>
 
 #include "common.hpp"
@@ -12,8 +11,8 @@
 #include "core/runtime.hpp"
 #include "models/graph_ops.hpp"
 #include "pipeline/rollout/rollout.hpp"
-#include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/rollout/rollout_model.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/runs/run_files.hpp"
 
 namespace bsms::python {
@@ -24,25 +23,17 @@ namespace {
 class TorchThreadScope {
  public:
   explicit TorchThreadScope(int threads)
-      : torch_before_(torch::get_num_threads()), blas_before_(openblas_threads()), omp_(threads) {
+      : torch_before_(torch::get_num_threads()), blas_before_(blas_threads()), omp_(threads) {
     configure_threads(omp_.threads());
   }
   ~TorchThreadScope() {
     torch::set_num_threads(torch_before_);
-    using Set = void (*)(int);
-    if (blas_before_ > 0)
-      if (auto set = reinterpret_cast<Set>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
-        set(blas_before_);
+    set_blas_threads(blas_before_);
   }
   TorchThreadScope(const TorchThreadScope&) = delete;
   TorchThreadScope& operator=(const TorchThreadScope&) = delete;
 
  private:
-  static int openblas_threads() {
-    using Get = int (*)();
-    auto get = reinterpret_cast<Get>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
-    return get != nullptr ? get() : 0;
-  }
   int torch_before_, blas_before_;
   ThreadScope omp_;
 };
@@ -87,8 +78,10 @@ std::vector<T> int_vector(const py::handle& value, const std::string& what, int 
   return out;
 }
 
-// The mesh of a predicted state, as bsms.Dataset.mesh() gives it, checked as a dataset's is.
-TrajectoryMesh mesh_from_dict(const py::dict& mesh, const LagrangianSpec& spec) {
+// The mesh of a predicted state, as bsms.Dataset.mesh() gives it, checked as a dataset's mesh is
+// (check_trajectory_mesh) with the node types of the run's data.
+TrajectoryMesh mesh_from_dict(const py::dict& mesh, const LagrangianSpec& spec,
+                              const Dataset& data) {
   for (const char* key : {"cells", "mesh_pos", "node_type"})
     if (!mesh.contains(key))
       throw InputError(std::string("mesh: missing ") + key +
@@ -102,18 +95,13 @@ TrajectoryMesh mesh_from_dict(const py::dict& mesh, const LagrangianSpec& spec) 
   m.dim = static_cast<int>(pos.shape(1));
   const auto pf = as_contiguous<float>(pos);
   m.mesh_pos.assign(pf.data(), pf.data() + pf.size());
-  for (float v : m.mesh_pos)
-    if (!std::isfinite(v)) throw InputError("mesh_pos: NaN or infinite value");
   py::array cells;
   m.cells = int_vector<int32_t>(mesh["cells"], "cells", 2, -1, -1, &cells);
   m.cell_size = static_cast<int>(cells.shape(1));
-  for (int32_t c : m.cells)
-    if (c < 0 || c >= n)
-      throw InputError("cells: node index " + std::to_string(c) + " out of range 0.." +
-                       std::to_string(n - 1));
   m.node_type = int_vector<int32_t>(mesh["node_type"], "node_type", 1, n, -1);
   m.body_id = mesh.contains("body_id") ? int_vector<int32_t>(mesh["body_id"], "body_id", 1, n, -1)
                                        : std::vector<int32_t>(static_cast<size_t>(n), 0);
+  check_trajectory_mesh(m, "mesh", data.has_simulated_node_types());
   return m;
 }
 
@@ -149,7 +137,7 @@ void bind_torch(py::module_& m) {
           [](PyRun& r, const py::dict& mesh_arrays, const py::list& frames,
              const py::object& prescribed, int threads) {
             const LagrangianSpec& spec = r.model.spec;
-            const TrajectoryMesh mesh = mesh_from_dict(mesh_arrays, spec);
+            const TrajectoryMesh mesh = mesh_from_dict(mesh_arrays, spec, *r.data);
             const int64_t n = mesh.num_nodes();
             if (frames.size() < 2)
               throw InputError(

@@ -29,10 +29,20 @@ int set_num_threads(int requested) {
 }
 
 bool single_threaded_blas() {
+  set_blas_threads(1);
+  return blas_threads() > 0;
+}
+
+int blas_threads() {
+  using GetThreads = int (*)();
+  auto get = reinterpret_cast<GetThreads>(dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+  return get != nullptr ? get() : 0;
+}
+
+void set_blas_threads(int threads) {
   using SetThreads = void (*)(int);
   auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  if (set != nullptr) set(1);
-  return set != nullptr;
+  if (set != nullptr && threads > 0) set(threads);
 }
 
 std::string cpu_model_name() {

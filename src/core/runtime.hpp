@@ -17,6 +17,10 @@ int hardware_threads();
 // GEMMs over OpenMP's passive pool instead, and a second pool of spinning BLAS threads would
 // compete with it for the cores. Returns whether OpenBLAS was found.
 bool single_threaded_blas();
+// OpenBLAS's own thread count (0 when the process has not loaded OpenBLAS), and setting it (no-op
+// without OpenBLAS): what single_threaded_blas changes, for callers that restore it afterwards.
+int blas_threads();
+void set_blas_threads(int threads);
 
 // Keeps large freed blocks in the process instead of returning them to the system (glibc:
 // mmap threshold 256 MiB, trim threshold 1 GiB). Training allocates and frees the same large

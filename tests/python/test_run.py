@@ -64,7 +64,11 @@ def test_bad_input(tiny_run, tmp_path):
     with pytest.raises(bsms.InputError, match="cells: expected an integer array"):
         run.predict(broken, [x[0], x[1]])
     broken["cells"] = mesh["cells"] + len(x[0])
-    with pytest.raises(bsms.InputError, match="out of range"):
+    with pytest.raises(bsms.InputError, match="cells: cell 0 references node .* outside"):
+        run.predict(broken, [x[0], x[1]])  # the message a dataset with that mesh gets
+    broken["cells"] = mesh["cells"]
+    broken["node_type"] = np.full(len(x[0]), 9)
+    with pytest.raises(bsms.InputError, match="node_type of node 0 is 9, expected 0..3"):
         run.predict(broken, [x[0], x[1]])
     missing = tmp_path / "no_run"
     with pytest.raises(bsms.InputError) as error:
