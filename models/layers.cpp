@@ -251,6 +251,10 @@ void Normalizer::accumulate(const torch::Tensor& x) {
   sum_squares_.add_(rows.square().sum(0));
 }
 
+bool Normalizer::empty() const {
+  return count_.item<double>() == 0.0;
+}
+
 torch::Tensor Normalizer::mean() const {
   return sum_ / count_.clamp_min(1.0);
 }

@@ -93,6 +93,7 @@ class Normalizer : public torch::nn::Module {
   torch::Tensor mean() const;                             // [C] float64
   torch::Tensor std() const;                              // [C] float64, >= std_epsilon
   int64_t size() const { return size_; }
+  bool empty() const;  // no row accumulated yet
   // The sums the statistics are made of (rows, sum, sum of squares): data-parallel training adds
   // them up over the ranks after accumulating.
   std::vector<torch::Tensor> sums() { return {count_, sum_, sum_squares_}; }

@@ -57,6 +57,43 @@ int64_t GraphModel::edge_feature_size(size_t set) const {
   return size + (stretch(set).enabled() ? 1 : 0);
 }
 
+void GraphModel::make_edge_normalizers(int levels) {
+  if (!options_.edge_normalizer) return;
+  edge_norms_.resize(static_cast<size_t>(levels));
+  for (int k = 0; k < levels; ++k)
+    for (size_t s = 0; s < num_edge_sets(); ++s)
+      edge_norms_[k].push_back(
+          register_module("edge_normalizer_" + std::to_string(k) + "_" + std::to_string(s),
+                          std::make_shared<Normalizer>(edge_feature_size(s))));
+}
+
+torch::Tensor GraphModel::normalize_edges(int level, size_t set,
+                                          const torch::Tensor& features) const {
+  if (edge_norms_.empty()) return features;
+  const Normalizer& norm = *edge_norms_[level][set];
+  return norm.empty() ? features : norm.normalize(features);
+}
+
+void GraphModel::accumulate_edge_statistics(const std::vector<torch::Tensor>& positions,
+                                            const MultilevelTensors& graph) {
+  if (edge_norms_.empty()) return;
+  torch::NoGradGuard no_grad;
+  std::vector<std::vector<EdgeIndex>> idx;
+  std::vector<std::vector<torch::Tensor>> feats;
+  edge_inputs(positions, graph, &idx, &feats);
+  for (size_t k = 0; k < feats.size(); ++k)
+    for (size_t s = 0; s < feats[k].size(); ++s)
+      if (feats[k][s].size(0) > 0) edge_norms_[k][s]->accumulate(feats[k][s]);
+}
+
+std::vector<torch::Tensor> GraphModel::edge_normalizer_sums() {
+  std::vector<torch::Tensor> sums;
+  for (auto& level : edge_norms_)
+    for (auto& norm : level)
+      for (auto& t : norm->sums()) sums.push_back(t);
+  return sums;
+}
+
 EdgeIndex GraphModel::edge_set(const MultilevelTensors& graph, int level, size_t set) {
   const auto& sets = graph.edge_sets[level];
   return set < sets.size() ? sets[set] : EdgeIndex::empty(graph.num_nodes(level));
@@ -138,6 +175,34 @@ BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
   bottom_ = blocks("bottom", counts.back());
   decoder_ = register_module("decoder",
                              std::make_shared<Mlp>(latent, latent, options_.output_size, false));
+  make_edge_normalizers(levels);
+}
+
+void BsmsGnn::edge_inputs(const std::vector<torch::Tensor>& positions,
+                          const MultilevelTensors& graph, std::vector<std::vector<EdgeIndex>>* idx,
+                          std::vector<std::vector<torch::Tensor>>* feats) const {
+  const int levels = options_.num_levels;
+  const size_t num_sets = num_edge_sets();
+  // Coarse positions: the finer positions moved down by the transition (no gradient).
+  std::vector<std::vector<torch::Tensor>> level_pos(levels);
+  level_pos[0] = positions;
+  {
+    torch::NoGradGuard no_grad;
+    for (int k = 0; k + 1 < levels; ++k) {
+      for (const auto& p : level_pos[k]) {
+        level_pos[k + 1].push_back(transition_down(p.contiguous(), graph.transitions[k + 1]));
+      }
+    }
+  }
+  idx->assign(levels, {});
+  feats->assign(levels, {});
+  for (int k = 0; k < levels; ++k) {
+    for (size_t s = 0; s < num_sets; ++s) {
+      (*idx)[k].push_back(edge_set(graph, k, s));
+      (*feats)[k].push_back(
+          edge_features(level_pos[k], options_.edge_set_fields[s], (*idx)[k].back(), stretch(s)));
+    }
+  }
 }
 
 torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
@@ -149,30 +214,11 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
     throw InputError("BSMS-GNN: graph has " + std::to_string(graph.num_levels()) +
                      " levels, the model was built for " + std::to_string(levels));
   }
-  const size_t num_sets = num_edge_sets();
-  // Edge indices and features of one level, for the current level's positions.
-  auto level_inputs = [&](int k, const std::vector<torch::Tensor>& pos, std::vector<EdgeIndex>& idx,
-                          std::vector<torch::Tensor>& feats) {
-    idx.clear();
-    feats.clear();
-    for (size_t s = 0; s < num_sets; ++s) {
-      idx.push_back(edge_set(graph, k, s));
-      feats.push_back(edge_features(pos, options_.edge_set_fields[s], idx.back(), stretch(s)));
-    }
-  };
-  std::vector<std::vector<torch::Tensor>> level_pos(levels);
-  level_pos[0] = positions;
-  {
-    torch::NoGradGuard no_grad;
-    for (int k = 0; k + 1 < levels; ++k) {
-      for (const auto& p : level_pos[k]) {
-        level_pos[k + 1].push_back(transition_down(p.contiguous(), graph.transitions[k + 1]));
-      }
-    }
-  }
-  std::vector<std::vector<EdgeIndex>> idx(levels);
-  std::vector<std::vector<torch::Tensor>> feats(levels);
-  for (int k = 0; k < levels; ++k) level_inputs(k, level_pos[k], idx[k], feats[k]);
+  std::vector<std::vector<EdgeIndex>> idx;
+  std::vector<std::vector<torch::Tensor>> feats;
+  edge_inputs(positions, graph, &idx, &feats);
+  for (int k = 0; k < levels; ++k)
+    for (size_t s = 0; s < feats[k].size(); ++s) feats[k][s] = normalize_edges(k, s, feats[k][s]);
 
   auto v = run_mlp(*encoder_, nodes);
   std::vector<torch::Tensor> skips;
@@ -261,22 +307,34 @@ MeshGraphNets::MeshGraphNets(GraphModelOptions options) : GraphModel(std::move(o
   }
   decoder_ = register_module("decoder",
                              std::make_shared<Mlp>(latent, latent, options_.output_size, false));
+  make_edge_normalizers(1);
+}
+
+void MeshGraphNets::edge_inputs(const std::vector<torch::Tensor>& positions,
+                                const MultilevelTensors& graph,
+                                std::vector<std::vector<EdgeIndex>>* idx,
+                                std::vector<std::vector<torch::Tensor>>* feats) const {
+  idx->assign(1, {});
+  feats->assign(1, {});
+  for (size_t s = 0; s < num_edge_sets(); ++s) {
+    (*idx)[0].push_back(edge_set(graph, 0, s));
+    (*feats)[0].push_back(
+        edge_features(positions, options_.edge_set_fields[s], (*idx)[0].back(), stretch(s)));
+  }
 }
 
 torch::Tensor MeshGraphNets::forward(const torch::Tensor& nodes,
                                      const std::vector<torch::Tensor>& positions,
                                      const MultilevelTensors& graph) {
   check_inputs(nodes, positions, graph);
-  std::vector<EdgeIndex> sets;
+  std::vector<std::vector<EdgeIndex>> idx;
+  std::vector<std::vector<torch::Tensor>> feats;
+  edge_inputs(positions, graph, &idx, &feats);
   std::vector<const EdgeIndex*> edges;
   std::vector<torch::Tensor> latents;
-  for (size_t s = 0; s < num_edge_sets(); ++s) sets.push_back(edge_set(graph, 0, s));
-  for (const auto& set : sets) edges.push_back(&set);
-  for (size_t s = 0; s < num_edge_sets(); ++s) {
-    latents.push_back(
-        run_mlp(*edge_encoders_[s],
-                edge_features(positions, options_.edge_set_fields[s], *edges[s], stretch(s))));
-  }
+  for (const auto& set : idx[0]) edges.push_back(&set);
+  for (size_t s = 0; s < num_edge_sets(); ++s)
+    latents.push_back(run_mlp(*edge_encoders_[s], normalize_edges(0, s, feats[0][s])));
   auto v = run_mlp(*node_encoder_, nodes);
   for (auto& block : blocks_) v = block->forward(v, latents, edges, mode_);
   return run_mlp(*decoder_, v);

@@ -32,6 +32,10 @@ struct GraphModelOptions {
   // BSMS: blocks per level, one entry per level (level k's blocks on the way down and up; the
   // last entry: the bottom), overriding mp_per_level; empty = mp_per_level on every level.
   std::vector<int> level_blocks;
+  // Edge features standardised per channel, one normalizer per level and edge set (MGN: level 0),
+  // with statistics accumulated like the node normalizer's (accumulate_edge_statistics), as
+  // MeshGraphNets' reference does; off: the raw features.
+  bool edge_normalizer = false;
 };
 
 // Common interface: node inputs (normalised) to node outputs (normalised) on a graph hierarchy.
@@ -46,6 +50,12 @@ class GraphModel : public torch::nn::Module {
                                 const std::vector<torch::Tensor>& positions,
                                 const MultilevelTensors& graph) = 0;
   const GraphModelOptions& options() const { return options_; }
+  // Adds the edge features of `graph` at `positions` (as forward takes them) to the edge
+  // normalizers' statistics; a no-op without edge normalizers. No gradient.
+  void accumulate_edge_statistics(const std::vector<torch::Tensor>& positions,
+                                  const MultilevelTensors& graph);
+  // The edge normalizers' sums (Normalizer::sums), level by level and set by set; empty without.
+  std::vector<torch::Tensor> edge_normalizer_sums();
   // kProjection (default): fused per-node projection kernels. kConcat: every MLP evaluated with
   // plain LibTorch ops and concatenated edge inputs, as the reference implementation does (same
   // parameters; for tests and benchmarks).
@@ -63,8 +73,18 @@ class GraphModel : public torch::nn::Module {
   torch::Tensor run_mlp(Mlp& mlp, const torch::Tensor& x) const;
   void check_inputs(const torch::Tensor& nodes, const std::vector<torch::Tensor>& positions,
                     const MultilevelTensors& graph) const;
+  // Raw edge features [level][set] (and the edge indices) of the levels the model reads.
+  virtual void edge_inputs(const std::vector<torch::Tensor>& positions,
+                           const MultilevelTensors& graph, std::vector<std::vector<EdgeIndex>>* idx,
+                           std::vector<std::vector<torch::Tensor>>* feats) const = 0;
+  // Registers one edge normalizer per level and set when options_.edge_normalizer is on.
+  void make_edge_normalizers(int levels);
+  // Features of `set` at `level`, standardised by its normalizer (as given without one, or
+  // while it has seen no edge: a set empty in every normaliser batch stays raw).
+  torch::Tensor normalize_edges(int level, size_t set, const torch::Tensor& features) const;
 
   GraphModelOptions options_;
+  std::vector<std::vector<std::shared_ptr<Normalizer>>> edge_norms_;  // [level][set]
   EdgeMlpMode mode_ = EdgeMlpMode::kProjection;
 };
 
@@ -79,6 +99,9 @@ class BsmsGnn : public GraphModel {
                         const MultilevelTensors& graph) override;
 
  private:
+  void edge_inputs(const std::vector<torch::Tensor>& positions, const MultilevelTensors& graph,
+                   std::vector<std::vector<EdgeIndex>>* idx,
+                   std::vector<std::vector<torch::Tensor>>* feats) const override;
   std::shared_ptr<Mlp> encoder_, decoder_;
   // down_[k], up_[k]: the blocks of level k; bottom_: those of the coarsest level.
   std::vector<std::vector<std::shared_ptr<MessagePassing>>> down_, up_;
@@ -107,6 +130,9 @@ class MeshGraphNets : public GraphModel {
                         const MultilevelTensors& graph) override;
 
  private:
+  void edge_inputs(const std::vector<torch::Tensor>& positions, const MultilevelTensors& graph,
+                   std::vector<std::vector<EdgeIndex>>* idx,
+                   std::vector<std::vector<torch::Tensor>>* feats) const override;
   std::shared_ptr<Mlp> node_encoder_, decoder_;
   std::vector<std::shared_ptr<Mlp>> edge_encoders_;
   std::vector<std::shared_ptr<EdgeLatentBlock>> blocks_;

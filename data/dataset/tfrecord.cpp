@@ -2,10 +2,13 @@
 
 #include <fcntl.h>
 #include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 #include <google/protobuf/wire_format_lite.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <climits>
@@ -13,6 +16,7 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
+#include <vector>
 
 #ifdef __SSE4_2__
 #include <nmmintrin.h>
@@ -25,7 +29,9 @@ namespace bsms::tfrecord {
 namespace {
 
 using google::protobuf::internal::WireFormatLite;
+using google::protobuf::io::ArrayInputStream;
 using google::protobuf::io::CodedInputStream;
+using google::protobuf::io::ZeroCopyInputStream;
 
 constexpr uint32_t kCastagnoli = 0x82F63B78u;  // reflected polynomial
 
@@ -118,6 +124,7 @@ struct TfRecordReader::Impl {
   std::vector<RecordRef> records;
   mutable std::mutex mutex;
   mutable std::vector<std::unique_ptr<RecordLayout>> layouts;
+  mutable std::vector<char> verified;  // data CRC checked
 
   ~Impl() {
     if (fd >= 0) ::close(fd);
@@ -170,6 +177,7 @@ struct TfRecordReader::Impl {
       offset += 12 + length + 4;
     }
     layouts.resize(records.size());
+    verified.assign(records.size(), 0);
   }
 
   void check_record(int64_t r) const {
@@ -192,19 +200,101 @@ struct TfRecordReader::Impl {
     return data;
   }
 
-  RecordLayout walk(int64_t r, const uint8_t* data) const;
-  const RecordLayout& layout_of(int64_t r, const uint8_t* data) const;
+  // Checks the data CRC of record r once: the first time, the record is read through a block
+  // buffer.
+  void verify(int64_t r) const {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (verified[r]) return;
+    }
+    const RecordRef& ref = records[r];
+    // Large blocks: records are read in random order, and a cold disk serves few large reads
+    // faster than many small ones. One buffer per thread, kept: no page faults per record.
+    constexpr uint64_t kBlock = uint64_t{16} << 20;
+    thread_local std::vector<uint8_t> block;
+    block.resize(static_cast<size_t>(std::min(ref.length, kBlock)) + 4);
+    uint32_t crc = 0;
+    for (uint64_t done = 0; done < ref.length;) {
+      const uint64_t n = std::min(kBlock, ref.length - done);
+      read_at(ref.offset + done, block.data(), n, rec(r));
+      crc = crc32c(block.data(), n, crc);
+      done += n;
+    }
+    uint8_t stored[4];
+    read_at(ref.offset + ref.length, stored, 4, rec(r));
+    if (mask_crc(crc) != load_u32(stored))
+      throw InputError(rec(r) + ": data CRC mismatch (corrupt record)");
+    std::lock_guard<std::mutex> lock(mutex);
+    verified[r] = 1;
+  }
+
+  RecordLayout walk(int64_t r) const;
+  const RecordLayout& layout_of(int64_t r) const;
   const FieldSlice& slice(int64_t r, const std::string& field, const FieldSpec** spec) const;
 };
 
 namespace {
 
+// Record data read from a file on demand, a block at a time: the wire walk reads tags, keys and
+// lengths and skips the payloads without reading them.
+class PreadStream : public ZeroCopyInputStream {
+ public:
+  PreadStream(int fd, uint64_t begin, uint64_t length, std::string what)
+      : fd_(fd), begin_(begin), length_(length), what_(std::move(what)) {}
+
+  bool Next(const void** data, int* size) override {
+    if (pos_ >= buffer_start_ && pos_ < buffer_end_) {  // what BackUp returned
+      *data = buffer_.data() + (pos_ - buffer_start_);
+      *size = static_cast<int>(buffer_end_ - pos_);
+      pos_ = buffer_end_;
+      return true;
+    }
+    if (pos_ >= length_) return false;
+    const size_t n = static_cast<size_t>(std::min<uint64_t>(buffer_.size(), length_ - pos_));
+    size_t done = 0;
+    while (done < n) {
+      const ssize_t got =
+          ::pread(fd_, buffer_.data() + done, n - done, static_cast<off_t>(begin_ + pos_ + done));
+      if (got < 0 && errno == EINTR) continue;
+      if (got < 0) throw InputError(what_ + ": read failed: " + std::strerror(errno));
+      if (got == 0)
+        throw InputError(what_ + ": truncated (the file ended at offset " +
+                         std::to_string(begin_ + pos_ + done) + ")");
+      done += static_cast<size_t>(got);
+    }
+    buffer_start_ = pos_;
+    buffer_end_ = pos_ + n;
+    *data = buffer_.data();
+    *size = static_cast<int>(n);
+    pos_ = buffer_end_;
+    return true;
+  }
+  void BackUp(int count) override { pos_ -= static_cast<uint64_t>(count); }
+  bool Skip(int count) override {
+    if (count < 0) return false;
+    if (static_cast<uint64_t>(count) > length_ - pos_) {
+      pos_ = length_;
+      return false;
+    }
+    pos_ += static_cast<uint64_t>(count);
+    return true;
+  }
+  int64_t ByteCount() const override { return static_cast<int64_t>(pos_); }
+
+ private:
+  int fd_;
+  uint64_t begin_, length_;
+  std::string what_;
+  std::array<uint8_t, 4096> buffer_{};
+  uint64_t pos_ = 0, buffer_start_ = 0, buffer_end_ = 0;
+};
+
 // Walks a tf.train.Example: Example{features=1}, Features{map<string, Feature> feature=1},
 // Feature{bytes_list=1 | float_list=2 | int64_list=3}, BytesList{repeated bytes value=1}.
 class ExampleWalker {
  public:
-  ExampleWalker(const uint8_t* data, int size, std::string what)
-      : in_(data, size), size_(size), what_(std::move(what)) {
+  ExampleWalker(ZeroCopyInputStream* stream, int size, std::string what)
+      : in_(stream), size_(size), what_(std::move(what)) {
     in_.SetTotalBytesLimit(size);
   }
 
@@ -336,10 +426,21 @@ int64_t resolve_count(const std::vector<int64_t>& shape, uint64_t elements, bool
 
 }  // namespace
 
-RecordLayout TfRecordReader::Impl::walk(int64_t r, const uint8_t* data) const {
+RecordLayout TfRecordReader::Impl::walk(int64_t r) const {
   const std::string what = rec(r);
   const uint64_t base = records[r].offset;
-  auto wire = ExampleWalker(data, static_cast<int>(records[r].length), what).run();
+  const uint64_t length = records[r].length;
+  if (length > static_cast<uint64_t>(INT_MAX))
+    throw InputError(what + ": " + std::to_string(length) +
+                     " bytes; records over 2 GiB are not supported");
+  std::map<std::string, WireBytes> wire;
+  if (fd >= 0) {
+    PreadStream in(fd, base, length, what);
+    wire = ExampleWalker(&in, static_cast<int>(length), what).run();
+  } else {
+    ArrayInputStream in(memory.data() + base, static_cast<int>(length));
+    wire = ExampleWalker(&in, static_cast<int>(length), what).run();
+  }
   RecordLayout layout;
   std::string n_field;
   auto bytes_of = [&](const std::string& name, const std::string& where) -> const WireBytes& {
@@ -377,9 +478,11 @@ RecordLayout TfRecordReader::Impl::walk(int64_t r, const uint8_t* data) const {
       if (lw.size != static_cast<uint64_t>(spec.shape[0]) * lsize)
         throw InputError(cwhere + ": " + std::to_string(lw.size) + " bytes, expected " +
                          std::to_string(spec.shape[0]) + " " + dtype_name(ltype) + " values");
+      std::vector<uint8_t> lengths(lw.size);
+      read_at(base + lw.position, lengths.data(), lw.size, cwhere);
       uint64_t rows = 0;
       for (int64_t t = 0; t < spec.shape[0]; ++t) {
-        const uint8_t* p = data + lw.position + t * lsize;
+        const uint8_t* p = lengths.data() + t * lsize;
         const int64_t len = ltype == DType::kInt32 ? load<int32_t>(p) : load<int64_t>(p);
         if (len < 0 || len > INT32_MAX)
           throw InputError(cwhere + ": row length " + std::to_string(len) + " of frame " +
@@ -417,9 +520,9 @@ RecordLayout TfRecordReader::Impl::walk(int64_t r, const uint8_t* data) const {
   return layout;
 }
 
-const RecordLayout& TfRecordReader::Impl::layout_of(int64_t r, const uint8_t* data) const {
+const RecordLayout& TfRecordReader::Impl::layout_of(int64_t r) const {
   // Caller holds the mutex.
-  if (!layouts[r]) layouts[r] = std::make_unique<RecordLayout>(walk(r, data));
+  if (!layouts[r]) layouts[r] = std::make_unique<RecordLayout>(walk(r));
   return *layouts[r];
 }
 
@@ -430,11 +533,7 @@ const FieldSlice& TfRecordReader::Impl::slice(int64_t r, const std::string& fiel
   for (size_t i = 0; i < meta.fields.size(); ++i) {
     if (meta.fields[i].name != field) continue;
     *spec = &meta.fields[i];
-    if (!layouts[r]) {
-      const auto data = read_record(r);
-      layout_of(r, data.get());
-    }
-    return layouts[r]->fields[i];
+    return layout_of(r).fields[i];
   }
   throw InputError(path + ": no field '" + field + "' in " + meta.path);
 }
@@ -508,11 +607,7 @@ uint64_t TfRecordReader::record_bytes(int64_t r) const {
 const RecordLayout& TfRecordReader::layout(int64_t r) const {
   impl_->check_record(r);
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  if (!impl_->layouts[r]) {
-    const auto data = impl_->read_record(r);
-    impl_->layout_of(r, data.get());
-  }
-  return *impl_->layouts[r];
+  return impl_->layout_of(r);
 }
 
 std::vector<float> TfRecordReader::read_float(int64_t r, const std::string& field, int64_t t0,
@@ -526,6 +621,7 @@ std::vector<float> TfRecordReader::read_float(int64_t r, const std::string& fiel
   const std::string where = impl_->rec(r) + ": field '" + field + "'";
   if (spec->kind == FieldKind::kDynamicVarlen)
     throw InputError(where + " is dynamic_varlen; read it whole with decode()");
+  if (spec->kind != FieldKind::kStatic) impl_->verify(r);
   const int64_t frames = s.frames();
   if (t0 < 0 || count < 0 || t0 > frames || count > frames - t0)
     throw InputError(where + ": frames " + std::to_string(t0) + ".." +
@@ -556,6 +652,7 @@ std::vector<int32_t> TfRecordReader::read_int32(int64_t r, const std::string& fi
   const std::string where = impl_->rec(r) + ": field '" + field + "'";
   if (spec->dtype != DType::kInt32 && spec->dtype != DType::kInt64)
     throw InputError(where + ": expected int32 or int64, meta says " + dtype_name(spec->dtype));
+  if (spec->kind != FieldKind::kStatic) impl_->verify(r);
   const size_t esize = dtype_size(spec->dtype);
   std::vector<int32_t> out(s.bytes / esize);
   if (spec->dtype == DType::kInt32) {
@@ -629,7 +726,8 @@ std::map<std::string, DecodedField> TfRecordReader::decode(int64_t r) const {
   const RecordLayout* layout = nullptr;
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
-    layout = &impl_->layout_of(r, data.get());
+    impl_->verified[r] = 1;
+    layout = &impl_->layout_of(r);
   }
   const uint64_t base = impl_->records[r].offset;
   std::map<std::string, DecodedField> out;

@@ -8,9 +8,12 @@
 // static fields are [1, N, d], dynamic ones [T, N, d], dynamic_varlen ones carry a companion
 // `length_<field>` with the rows of each frame).
 //
-// Opening a file scans record headers only; a record's data is checked (CRC) and its protobuf
-// wire walked on first access, which records where each field's bytes lie; later reads fetch only
-// those bytes. Every problem is an InputError naming the file, the record and the field.
+// Opening a file scans record headers only. A record's protobuf wire is walked on first access,
+// reading tags, keys and lengths only (a few blocks per record, however large it is), which
+// records where each field's bytes lie; reads fetch only those bytes. The data CRC covers the
+// whole record, so it is checked (the record read once, whole) on the first read of a dynamic
+// field or by decode(): the static mesh of every trajectory can be read without a pass over a
+// 13 GB split. Every problem is an InputError naming the file, the record and the field.
 #pragma once
 
 #include <cstddef>
@@ -79,11 +82,12 @@ class TfRecordReader {
   int64_t num_records() const;
   uint64_t record_bytes(int64_t record) const;  // data length of a record
 
-  // Checks the data CRC and walks the wire of a record on first call (then cached): every field
-  // present, sizes that fit dtype and shape, N consistent.
+  // Walks the wire of a record on first call (then cached; no CRC check): every field present,
+  // sizes that fit dtype and shape, N consistent.
   const RecordLayout& layout(int64_t record) const;
   // Frames [t0, t0 + count) of a fixed-size field as float: [count, N, width] flattened (static
-  // fields have one frame). Reads only those bytes.
+  // fields have one frame). Reads only those bytes (and, for a dynamic field, the whole record
+  // once for its CRC).
   std::vector<float> read_float(int64_t record, const std::string& field, int64_t t0,
                                 int64_t count) const;
   // A whole integer field as int32 (int64 values must fit).

@@ -179,6 +179,66 @@ TEST(Networks, MissingContactSetCountsAsEmpty) {
   }
 }
 
+TEST(Networks, EdgeNormalizerStatisticsAreThoseOfTheEdgeFeatures) {
+  torch::manual_seed(13);
+  const int levels = 2;
+  auto p = make_problem(6, 5, levels, false);  // no contact edges: set 1 is empty everywhere
+  for (int which = 0; which < 2; ++which) {
+    GraphModelOptions o = lagrangian_options(levels);
+    GraphModelOptions plain = o;
+    o.edge_normalizer = true;
+    std::shared_ptr<GraphModel> model, raw;
+    if (which == 0) {
+      model = std::make_shared<BsmsGnn>(o);
+      raw = std::make_shared<BsmsGnn>(plain);
+    } else {
+      model = std::make_shared<MeshGraphNets>(o);
+      raw = std::make_shared<MeshGraphNets>(plain);
+    }
+    const int model_levels = which == 0 ? levels : 1;
+    EXPECT_EQ(model->edge_normalizer_sums().size(), static_cast<size_t>(3 * model_levels * 2));
+    EXPECT_TRUE(raw->edge_normalizer_sums().empty());
+    // Same parameters; before any statistics the normalizers leave the features raw.
+    {
+      torch::NoGradGuard no_grad;
+      auto from = raw->named_parameters();
+      for (auto& item : model->named_parameters()) item.value().copy_(from[item.key()]);
+    }
+    EXPECT_LT(max_rel_diff(model->forward(p.nodes, p.positions, p.graph),
+                           raw->forward(p.nodes, p.positions, p.graph)),
+              1e-6);
+    model->accumulate_edge_statistics(p.positions, p.graph);
+    model->accumulate_edge_statistics(p.positions, p.graph);
+    auto buffers = model->named_buffers();
+    // Level 0, mesh edges: the sums are those of the features, twice.
+    const EdgeIndex& mesh_edges = p.graph.edge_sets[0][0];
+    const auto f = edge_features(p.positions, {0, 1}, mesh_edges).to(torch::kFloat64);
+    EXPECT_EQ(buffers["edge_normalizer_0_0.count"].item<double>(), 2.0 * mesh_edges.num_edges());
+    EXPECT_LT((buffers["edge_normalizer_0_0.sum"] - 2 * f.sum(0)).abs().max().item<double>(),
+              1e-9 * (1 + f.abs().sum().item<double>()));
+    EXPECT_LT((buffers["edge_normalizer_0_0.sum_squares"] - 2 * f.square().sum(0))
+                  .abs()
+                  .max()
+                  .item<double>(),
+              1e-9 * (1 + f.square().sum().item<double>()));
+    for (int k = 0; k < model_levels; ++k) {
+      const std::string prefix = "edge_normalizer_" + std::to_string(k) + "_";
+      EXPECT_EQ(buffers[prefix + "0.count"].item<double>(),
+                2.0 * p.graph.edge_sets[k][0].num_edges());
+      EXPECT_EQ(buffers[prefix + "1.count"].item<double>(), 0.0);  // never saw a contact edge
+    }
+    // Now the model sees standardised features: other outputs than the raw model's.
+    EXPECT_GT(max_rel_diff(model->forward(p.nodes, p.positions, p.graph),
+                           raw->forward(p.nodes, p.positions, p.graph)),
+              1e-3);
+    // A contact edge appearing later stays raw in its never-accumulated set: finite outputs.
+    auto q = make_problem(6, 5, levels, true);
+    q.positions = p.positions;
+    q.nodes = p.nodes;
+    EXPECT_TRUE(torch::isfinite(model->forward(q.nodes, q.positions, q.graph)).all().item<bool>());
+  }
+}
+
 TEST(Networks, ProjectionEqualsConcatFormulation) {
   torch::manual_seed(12);
   auto p = make_problem(8, 7, 3, true);

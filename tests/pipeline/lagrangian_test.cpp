@@ -126,7 +126,7 @@ TEST(NoiseGamma, TargetsKeepPositionOrVelocity) {
   LagrangianSpec spec;
   LagrangianAdapter adapter(spec);
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}, {}};
+  FrameState state{store.get(plate.mesh).get(), &plate.mesh, frames[0], frames[1], {}, {}};
   const auto noise = 1e-3 * torch::randn({n, 2});
   const Batch b = adapter.make_batch({state}, {noise});
   const auto mask = b.mask.unsqueeze(1);
@@ -152,7 +152,7 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   ASSERT_EQ(spec.input_size(), 2 + 4 + 2);
   LagrangianAdapter adapter(spec);
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  FrameState state{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], frames[2], {}};
+  FrameState state{store.get(plate.mesh).get(), &plate.mesh, frames[0], frames[1], frames[2], {}};
   const auto noise = 1e-3 * torch::randn({n, 2});
   const Batch b = adapter.make_batch({state}, {noise});
   const auto target = adapter.target(b, frames[2], 1.0);
@@ -172,7 +172,7 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   }
   EXPECT_GT(prescribed, 0);
   // Without the next frame the kinematic input cannot be formed: a logic error, not garbage.
-  FrameState blind{&store.get(plate.mesh), &plate.mesh, frames[0], frames[1], {}, {}};
+  FrameState blind{store.get(plate.mesh).get(), &plate.mesh, frames[0], frames[1], {}, {}};
   EXPECT_THROW(adapter.make_batch({blind}), std::logic_error);
   // Round trip of the resolved features: old runs (no keys) read as second order.
   const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");

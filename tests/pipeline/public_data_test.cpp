@@ -15,6 +15,7 @@
 #include "pipeline/rollout/rollout.hpp"
 #include "pipeline/runs/train_stats.hpp"
 #include "pipeline/train/trainer.hpp"
+#include "pipeline/train/training_data.hpp"
 
 namespace bsms {
 namespace {
@@ -149,6 +150,61 @@ TEST(PublicData, DeformingPlateIsFirstOrderWithActuatorInputAndContact) {
   expect_boundary_follows_truth(run.string(), "world_pos", false);
 }
 
+// DeformingPlate's stress is a second output: the target's last column is the next frame's
+// stress, one output normalizer covers it beside the velocity (over every node on public data,
+// as MeshGraphNets' reference), and the rollout writes and scores it.
+TEST(PublicData, DeformingPlatePredictsStressWithItsNormalizer) {
+  const fs::path data_dir = copy_fixture("deforming_plate", "stress");
+  const std::string config_path =
+      (fs::path(BSMS_SOURCE_DIR) / "configs" / "train" / "plate-mgn.json").string();
+  TrainConfig config = parse_train_config(load_json_file(config_path, "config"), config_path);
+  config.data = data_dir.string();
+  const Dataset data = Dataset::open_split(config.data, "train");
+  const ResolvedModel r = resolve_model(config, data);
+  ASSERT_TRUE(r.spec.stress);
+  EXPECT_EQ(r.spec.output_size(), 4);
+  GraphStore store(config.model.seeding, r.levels, {});
+  const std::vector<SampleRef> refs = {{0, 5}, {1, 9}};
+  const TrainBatch b = make_train_batch(r, config, data, store, refs, nullptr);
+  ASSERT_EQ(b.target.size(1), 4);
+  std::vector<float> stress;
+  for (const SampleRef& ref : refs) {
+    const auto s = data.read(ref.trajectory, "stress", ref.frame + 1, 1);
+    stress.insert(stress.end(), s.begin(), s.end());
+  }
+  ASSERT_EQ(b.target.size(0), static_cast<int64_t>(stress.size()));
+  const auto column = b.target.select(1, 3).contiguous();
+  for (size_t i = 0; i < stress.size(); ++i) ASSERT_EQ(column[i].item<float>(), stress[i]) << i;
+  // The normalizer's statistics: every node, or the predicted ones only.
+  double all = 0, predicted = 0;
+  const auto mask = b.batch.mask.contiguous();
+  for (size_t i = 0; i < stress.size(); ++i) {
+    all += stress[i];
+    if (mask[i].item<bool>()) predicted += stress[i];
+  }
+  ASSERT_LT(mask.sum().item<double>(), static_cast<double>(stress.size()));  // actuator nodes
+  for (const bool every : {true, false}) {
+    LearnedSimulator sim(r.spec, config.model, r.levels);
+    sim.accumulate_statistics(b.batch, b.target, every);
+    const auto buffers = sim.named_buffers();
+    EXPECT_NEAR(buffers["output_normalizer.sum"][3].item<double>(), every ? all : predicted,
+                1e-6 * (1 + std::abs(all)));
+    EXPECT_EQ(buffers["output_normalizer.count"].item<double>(),
+              every ? static_cast<double>(stress.size()) : mask.sum().item<double>());
+  }
+  // Trained and rolled out: stress written beside the positions, scored, and the truth on the
+  // nodes the model does not solve.
+  const Outcome o =
+      train_and_roll_out({"deforming_plate", "plate-mgn"}, "plate_stress", 30, 0.0003);
+  EXPECT_TRUE(std::isfinite(o.metrics["rmse_all"]["stress"].get<double>()));
+  EXPECT_GT(o.metrics["rmse_all_persistence"]["stress"].get<double>(), 0.0);  // the reference
+  EXPECT_EQ(o.metrics["rmse_per_step"]["stress"].size(), 22u);  // 24 frames: 22 predicted steps
+  EXPECT_TRUE(o.metrics["rmse_trajectory_mean"]["all"].contains("stress"));
+  expect_boundary_follows_truth(o.run, "stress", false);
+  const Json saved = load_json_file(run_config_path(o.run));
+  EXPECT_EQ(saved["features_resolved"]["stress"], true);
+}
+
 TEST(PublicData, FlagHasTwoDimensionalMeshInThreeDimensions) {
   const Outcome o = train_and_roll_out({"flag_simple", "flag-mgn"}, "flag", 50, 0.0003);
   EXPECT_TRUE(std::isfinite(o.metrics["rmse_all"]["world_pos"].get<double>()));
@@ -183,7 +239,8 @@ TEST(EulerianAdapter, TargetAndIntegrateAreInverse) {
   mesh.node_type = {0, 4, 5, 6};  // normal, inflow, outflow, wall
   mesh.body_id = {0, 0, 0, 0};
   GraphStore store(Seeding::kCloseCenter, 1, {});
-  const MeshGraphs& graphs = store.get(mesh);
+  const auto graphs_owner = store.get(mesh);
+  const MeshGraphs& graphs = *graphs_owner;
   EulerianSpec spec;
   spec.dim = 2;
   spec.density = true;

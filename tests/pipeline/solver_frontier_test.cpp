@@ -364,6 +364,39 @@ FrontierSetting fake_setting(const std::string& name, double ms, double rmse, in
   return s;
 }
 
+TEST(Report, ThesisTableSetsTheModelsSideBySidePerDataset) {
+  const fs::path dir = fresh_dir("thesis_table");
+  auto run = [&](const std::string& name, const std::string& model, const std::string& data,
+                 double scale) {
+    const std::string path = fake_run(dir / name, 1.0, 0.02);
+    RolloutMetrics m = read_rollout_metrics((fs::path(path) / "rollout" / "metrics.json").string());
+    m.model = model;
+    m.data = data;
+    for (const auto& [h, v] : std::vector<std::pair<std::string, double>>{
+             {"1", 1e-3}, {"10", 2e-3}, {"50", 5e-3}, {"all", 8e-3}}) {
+      FieldRmse f;
+      f.fields = {{"world_pos", scale * v}};
+      f.total = scale * v;
+      m.rmse_trajectory_mean[h] = f;
+    }
+    write_json_atomic((fs::path(path) / "rollout" / "metrics.json").string(), to_json(m));
+    return path;
+  };
+  ReportRequest request;
+  request.runs = {run("b", "bsms", "runs/public/plate/", 1.0),
+                  run("m", "mgn", "runs/public/plate", 2.0),
+                  run("c", "bsms", "data/cubes/test.h5", 1.0)};
+  request.out = (dir / "out").string();
+  const std::string text = read_text(write_report(request));
+  EXPECT_NE(text.find("| dataset | field | MeshGraphNets RMSE-1 | RMSE-50 | RMSE-all | BSMS-GNN "
+                      "RMSE-1 | RMSE-50 | RMSE-all | runs |"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("| plate | world_pos | 2 | 10 | 16 | 1 | 5 | 8 |"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("| cubes | world_pos | – | – | – | 1 | 5 | 8 |"), std::string::npos) << text;
+}
+
 TEST(SolverFrontier, ReportDrawsTheFrontierAndSaysWhetherASettingBeatsEachRun) {
   const fs::path dir = fresh_dir("report");
   // fast: 1 ms/step, no setting that fast; slow: 20 ms/step, beaten by cheap (4 ms/frame, more

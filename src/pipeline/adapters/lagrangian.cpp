@@ -59,6 +59,7 @@ Json to_json(const LagrangianSpec& s) {
   // Written only when they differ from what runs trained before them used.
   if (s.mesh_dim > 0 && s.mesh_dim != s.dim) j["mesh_dim"] = s.mesh_dim;
   if (s.first_order) j["output"] = "velocity";
+  if (s.stress) j["stress"] = true;
   if (s.kinematic_input) j["kinematic_input"] = true;
   if (!s.velocity_input) j["velocity_input"] = false;
   if (s.history > 1) j["history"] = s.history;
@@ -141,6 +142,7 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   require(output == "acceleration" || output == "velocity", r.context("output"),
           "\"acceleration\" or \"velocity\"");
   s.first_order = output == "velocity";
+  s.stress = r.opt<bool>("stress", false);
   s.kinematic_input = r.opt<bool>("kinematic_input", false);
   s.velocity_input = r.opt<bool>("velocity_input", true);
   s.history = r.opt<int>("history", 1);
@@ -748,7 +750,8 @@ torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor&
 
 torch::Tensor LagrangianAdapter::integrate(const Batch& batch, const torch::Tensor& accel,
                                            const torch::Tensor& prescribed) const {
-  auto predicted = spec_.first_order ? batch.cur + accel : 2 * batch.cur - batch.prev + accel;
+  const auto motion = accel.size(1) > spec_.dim ? accel.narrow(1, 0, spec_.dim) : accel;
+  auto predicted = spec_.first_order ? batch.cur + motion : 2 * batch.cur - batch.prev + motion;
   return torch::where(batch.mask.unsqueeze(1), predicted, prescribed);
 }
 

@@ -25,6 +25,9 @@ struct LagrangianSpec {
   // Output x_{t+1} - x_t integrated at first order (MeshGraphNets' DeformingPlate) instead of
   // the acceleration x_{t+1} - 2 x_t + x_{t-1}.
   bool first_order = false;
+  // One more output: the stress at t+1 (a per-node scalar; MeshGraphNets' DeformingPlate), after
+  // the dim motion channels.
+  bool stress = false;
   // Nodes that follow a prescribed path get their next-step motion x_{t+1} - x_t as dim more
   // inputs (0 on predicted nodes): an actuator's motion is known to the model, as in
   // MeshGraphNets. FrameState::next must then be set.
@@ -66,7 +69,7 @@ struct LagrangianSpec {
            (kinematic_input ? dim : 0);
   }
   int mesh_dimension() const { return mesh_dim > 0 ? mesh_dim : dim; }
-  int output_size() const { return dim; }
+  int output_size() const { return dim + (stress ? 1 : 0); }
   bool has_contact() const { return contact_radius > 0; }
   bool has_momentum() const { return momentum_radius > 0; }
 };
@@ -206,7 +209,7 @@ class LagrangianAdapter {
   torch::Tensor target(const Batch& batch, const torch::Tensor& next,
                        double noise_gamma = 1.0) const;
   // x_{t+1} = 2 x_t - x_{t-1} + a (first order: x_t + v) on predicted nodes, `prescribed`
-  // [N, dim] elsewhere.
+  // [N, dim] elsewhere; `accel` may carry further output channels (stress), which are ignored.
   torch::Tensor integrate(const Batch& batch, const torch::Tensor& accel,
                           const torch::Tensor& prescribed) const;
 

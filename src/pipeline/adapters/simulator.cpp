@@ -10,6 +10,20 @@
 
 namespace bsms {
 
+namespace {
+
+// project_momentum on the motion channels (the first dim); further output channels (stress) as
+// they are.
+torch::Tensor project_motion(const Batch& batch, const torch::Tensor& out) {
+  if (batch.num_groups == 0) return out;
+  const int64_t d = batch.cur.size(1);
+  if (out.size(1) == d) return project_momentum(batch, out);
+  return torch::cat(
+      {project_momentum(batch, out.narrow(1, 0, d)), out.narrow(1, d, out.size(1) - d)}, 1);
+}
+
+}  // namespace
+
 ModelShape model_shape(const LagrangianSpec& spec) {
   ModelShape s;
   s.input_size = spec.input_size();
@@ -41,6 +55,7 @@ LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& c
   o.num_levels = levels;
   o.message_passing_steps = config.message_passing_steps;
   o.mp_per_level = config.mp_per_level;
+  o.edge_normalizer = config.edge_normalizer == "on";
   bf16_ = config.precision == "bf16";
   if (config.type == "bsms") {
     o.level_blocks = config.level_blocks;
@@ -79,30 +94,33 @@ torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& ta
   if (batch.num_groups > 0) {
     // Free groups: compare the momentum-conserving parts (the group-wide part of the training
     // noise is not the model's to undo).
-    prediction =
-        output_norm_->normalize(project_momentum(batch, output_norm_->inverse(prediction)));
-    goal = project_momentum(batch, target);
+    prediction = output_norm_->normalize(project_motion(batch, output_norm_->inverse(prediction)));
+    goal = project_motion(batch, target);
   }
   const auto diff = prediction - output_norm_->normalize(goal);
   auto error = diff.pow(2).sum(1);
   if (rigid_weight > 0) {
     // The rigid part of the raw error, measured in the normalised units of the loss.
-    const auto scale = output_norm_->std().to(diff.dtype());
-    const auto rigid = rigid_part(batch, diff * scale) / scale;
+    const int64_t d = batch.cur.size(1);  // the motion channels (not a stress output)
+    const auto scale = output_norm_->std().to(diff.dtype()).narrow(0, 0, d);
+    const auto rigid = rigid_part(batch, diff.narrow(1, 0, d) * scale) / scale;
     error = error + rigid_weight * rigid.pow(2).sum(1);
   }
   return error.index({batch.mask}).mean();
 }
 
-void LearnedSimulator::accumulate_statistics(const Batch& batch, const torch::Tensor& target) {
+void LearnedSimulator::accumulate_statistics(const Batch& batch, const torch::Tensor& target,
+                                             bool all_nodes) {
   torch::NoGradGuard no_grad;
   input_norm_->accumulate(batch.inputs);
-  output_norm_->accumulate(target.index({batch.mask}));
+  output_norm_->accumulate(all_nodes ? target : target.index({batch.mask}));
+  model_->accumulate_edge_statistics(batch.positions, batch.graph);
 }
 
 std::vector<torch::Tensor> LearnedSimulator::normalizer_sums() {
   auto sums = input_norm_->sums();
   for (auto& t : output_norm_->sums()) sums.push_back(t);
+  for (auto& t : model_->edge_normalizer_sums()) sums.push_back(t);
   return sums;
 }
 
@@ -117,7 +135,7 @@ torch::Tensor LearnedSimulator::zero_prediction_loss(const Batch& batch,
 }
 
 torch::Tensor LearnedSimulator::predict(const Batch& batch) {
-  return project_momentum(batch, output_norm_->inverse(forward_normalized(batch)));
+  return project_motion(batch, output_norm_->inverse(forward_normalized(batch)));
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,

@@ -44,13 +44,17 @@ class LearnedSimulator : public torch::nn::Module {
   // `rigid_weight` w > 0 the rigid part of each body's error (rigid_part, taken in raw units and
   // normalised back) counts 1 + w times.
   torch::Tensor loss(const Batch& batch, const torch::Tensor& target, double rigid_weight = 0.0);
-  // Adds the batch's inputs and (predicted nodes') targets to the normalizer statistics.
-  void accumulate_statistics(const Batch& batch, const torch::Tensor& target);
+  // Adds the batch's inputs and targets (of the predicted nodes, or with `all_nodes` of every
+  // node, as MeshGraphNets' reference) and the model's edge features to the normalizer
+  // statistics.
+  void accumulate_statistics(const Batch& batch, const torch::Tensor& target,
+                             bool all_nodes = false);
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the
   // reference a model must beat (no gradient).
   torch::Tensor zero_prediction_loss(const Batch& batch, const torch::Tensor& target) const;
-  // Raw output (Lagrangian: acceleration or velocity [N, dim]) predicted for the batch,
-  // momentum-conserving on its free groups.
+  // Raw output (Lagrangian: acceleration or velocity [N, dim], then the stress [N, 1] with
+  // LagrangianSpec::stress) predicted for the batch, its motion momentum-conserving on the free
+  // groups.
   torch::Tensor predict(const Batch& batch);
 
   // Both normalizers' sums (Normalizer::sums), to be added up over data-parallel ranks.

@@ -113,8 +113,7 @@ CachedMultilevel MultilevelCache::load_or_build(const TrajectoryMesh& mesh) {
     }
     if (!failure.empty() && require_write_)
       throw IoError("cannot write the multilevel graph " + name + ": " + failure);
-    if (!failure.empty() && !warned_write_) {
-      warned_write_ = true;
+    if (!failure.empty() && !warned_write_.exchange(true)) {
       std::cerr << "bsms: warning: graphs are kept in memory only, no cache folder took them ("
                 << one_line(failure) << ")\n";
     }

@@ -3,6 +3,7 @@
 // preprocess --data` fills the cache with it; GraphStore (graph_store.hpp) adds the model tensors.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -37,6 +38,7 @@ class MultilevelCache {
                   uint64_t rng_seed = 0, bool require_write = false);
   // The mesh's graph from the first cache folder that holds a matching one, else built and
   // written to the first folder that takes it. Not memoised: the caller keeps what it reuses.
+  // Threads may call it at once for different meshes.
   CachedMultilevel load_or_build(const TrajectoryMesh& mesh);
   int levels() const { return levels_; }
 
@@ -46,7 +48,7 @@ class MultilevelCache {
   uint64_t rng_seed_;
   std::vector<std::string> cache_dirs_;
   bool require_write_;
-  bool warned_write_ = false;  // the in-memory-only warning is said once
+  std::atomic<bool> warned_write_{false};  // the in-memory-only warning is said once
 };
 
 // File name of a cached multilevel graph: "<seeding>-L<levels>-<topology key>.h5", with the seed

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <map>
 #include <optional>
 #include <sstream>
 
@@ -14,8 +15,8 @@
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
-#include "pipeline/report/animation.hpp"
 #include "pipeline/experiments/solver_frontier.hpp"
+#include "pipeline/report/animation.hpp"
 #include "pipeline/report/number_format.hpp"
 #include "pipeline/report/plotting.hpp"
 #include "pipeline/runs/rollout_metrics.hpp"
@@ -213,6 +214,80 @@ void write_horizon_table(std::ostringstream& md, const std::vector<RunData>& run
            << " |";
       }
       md << "\n";
+    }
+  }
+}
+
+// A dataset's short name: the folder of a MeshGraphNets split or of a bsms dataset, the file stem
+// of a single-file dataset (e.g. "runs/public/cylinder_flow" -> "cylinder_flow").
+std::string dataset_name(const std::string& data) {
+  fs::path p(data);
+  while (!p.empty() && p.filename().empty()) p = p.parent_path();  // trailing slash
+  const std::string ext = p.extension().string();
+  if (ext == ".tfrecord" || ext == ".h5") {
+    const std::string stem = p.stem().string();
+    if (stem == "train" || stem == "valid" || stem == "test")
+      return p.parent_path().filename().string();
+    return stem;
+  }
+  return p.filename().string();
+}
+
+// The thesis's Table 4.5 layout: a row per dataset, RMSE-1, RMSE-50 and RMSE-all (×10⁻³, the
+// trajectory-mean convention) of MeshGraphNets and BSMS-GNN side by side, for the field each
+// dataset is scored on (velocity for Eulerian data, positions for Lagrangian).
+void write_thesis_table(std::ostringstream& md, const std::vector<RunData>& runs) {
+  std::vector<std::string> datasets;
+  std::map<std::pair<std::string, std::string>, std::vector<const RunData*>> by;  // (data, model)
+  for (const auto& r : runs) {
+    if (r.metrics.rmse_trajectory_mean.empty()) continue;
+    const std::string d = dataset_name(r.metrics.data);
+    if (std::find(datasets.begin(), datasets.end(), d) == datasets.end()) datasets.push_back(d);
+    by[{d, r.metrics.model}].push_back(&r);
+  }
+  if (datasets.empty()) return;
+  const std::vector<std::pair<std::string, std::string>> models = {{"mgn", "MeshGraphNets"},
+                                                                   {"bsms", "BSMS-GNN"}};
+  md << "\nIn the layout of the BSMS-GNN thesis's Table 4.5 (RMSE ×10⁻³ over the first 1 and 50 "
+        "steps and the whole rollout, each test trajectory's averaged over the trajectories):\n\n"
+        "| dataset | field |";
+  for (const auto& m : models) md << " " << m.second << " RMSE-1 | RMSE-50 | RMSE-all |";
+  md << " runs |\n|---|---|";
+  for (size_t k = 0; k < models.size(); ++k) md << "---|---|---|";
+  md << "---|\n";
+  const auto value = [](const RunData& r, const std::string& h, const std::string& field) {
+    const auto row = r.metrics.rmse_trajectory_mean.find(h);
+    if (row == r.metrics.rmse_trajectory_mean.end()) return std::string("–");
+    const auto v = row->second.fields.find(field);
+    if (v == row->second.fields.end()) return std::string("–");
+    return format_number(1e3 * v->second, 3, Notation::kGeneral);
+  };
+  for (const std::string& d : datasets) {
+    // One row per pairing of runs: the i-th run of each model on this dataset.
+    size_t rows = 0;
+    for (const auto& m : models)
+      if (by.count({d, m.first})) rows = std::max(rows, by[{d, m.first}].size());
+    for (size_t i = 0; i < rows; ++i) {
+      std::string field, names;
+      for (const auto& m : models) {
+        const auto it = by.find({d, m.first});
+        if (it != by.end() && i < it->second.size()) {
+          field = it->second[i]->metrics.primary_field();
+          names += (names.empty() ? "" : ", ") + it->second[i]->label;
+        }
+      }
+      md << "| " << d << " | " << field << " |";
+      for (const auto& m : models) {
+        const auto it = by.find({d, m.first});
+        if (it == by.end() || i >= it->second.size()) {
+          md << " – | – | – |";
+          continue;
+        }
+        const RunData& r = *it->second[i];
+        md << " " << value(r, "1", field) << " | " << value(r, "50", field) << " | "
+           << value(r, "all", field) << " |";
+      }
+      md << " " << names << " |\n";
     }
   }
 }
@@ -538,10 +613,22 @@ std::string write_report(const ReportRequest& request) {
 
   // --- report.md
   std::ostringstream md;
+  // What the RMSE columns measure: positions (Lagrangian) or velocities (Eulerian), against the
+  // dataset's stored frames (UMLS-MPM's for bsms data, the publisher's solver's for public data).
+  bool any_eulerian = false, any_lagrangian = false;
+  for (const auto& r : runs) (r.metrics.eulerian ? any_eulerian : any_lagrangian) = true;
+  const std::string measured = any_eulerian && any_lagrangian
+                                   ? "world positions (m, Lagrangian runs) or velocities "
+                                     "(Eulerian runs)"
+                               : any_eulerian ? "velocities"
+                                              : "world positions (m)";
   md << "# " << request.title << "\n\n"
      << "Per model, as in the BSMS-GNN paper's Tables 4.5–4.6. Times are medians on this machine; "
-        "RMSE is the root mean squared error of predicted world positions (m) against the UMLS-MPM "
-        "ground truth over the first 1, 50 and all predicted steps of the test split.\n\n"
+        "RMSE is the root mean squared error of predicted "
+     << measured
+     << " against the dataset's ground truth over the first 1, 50 and all predicted steps of "
+        "the test split (pooled over trajectories and steps; a rollout shorter than 50 steps "
+        "gives its whole length as RMSE-50 here).\n\n"
      << "| run | model | levels | train steps | train ms/step | infer ms/step | solver ms/frame | "
         "speed-up | RMSE-1 | RMSE-50 | RMSE-all | inverted cells (max) | peak RAM train (MB) | "
         "peak RAM infer (MB) | nodes | threads |\n"
@@ -582,6 +669,7 @@ std::string write_report(const ReportRequest& request) {
     md << ".\n";
   }
   write_horizon_table(md, runs);
+  write_thesis_table(md, runs);
   if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
   // What a model must beat: extrapolating the first velocity of each test trajectory.
   const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);

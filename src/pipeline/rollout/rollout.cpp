@@ -15,19 +15,19 @@
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "models/graph_ops.hpp"
-#include "pipeline/rollout/body_motion_error.hpp"
 #include "pipeline/adapters/eulerian.hpp"
-#include "pipeline/graphs/graph_store.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/adapters/simulator.hpp"
+#include "pipeline/graphs/graph_store.hpp"
+#include "pipeline/rollout/body_motion_error.hpp"
 #include "pipeline/rollout/rollout_eulerian.hpp"
-#include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/rollout/rollout_model.hpp"
 #include "pipeline/rollout/rollout_outputs.hpp"
-#include "pipeline/runs/run_files.hpp"
 #include "pipeline/rollout/scene_symmetry.hpp"
-#include "pipeline/adapters/simulator.hpp"
-#include "pipeline/train/trainer.hpp"
 #include "pipeline/rollout/validity_tally.hpp"
+#include "pipeline/runs/rollout_metrics.hpp"
+#include "pipeline/runs/run_files.hpp"
+#include "pipeline/train/trainer.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
@@ -37,17 +37,21 @@ namespace {
 // Mean squared error per predicted step, per field, accumulated over trajectories.
 struct ErrorCurves {
   std::vector<double> pos_sum, vel_sum;
+  std::vector<double> stress_sum;    // with a stress output (has_stress)
   std::vector<double> inverted_sum;  // fraction of cells with flipped orientation, predicted
   std::vector<int64_t> count;
-  void add(size_t step, double pos_mse, double vel_mse, double inverted) {
+  bool has_stress = false;
+  void add(size_t step, double pos_mse, double vel_mse, double inverted, double stress_mse = 0) {
     if (pos_sum.size() <= step) {
       pos_sum.resize(step + 1, 0.0);
       vel_sum.resize(step + 1, 0.0);
+      stress_sum.resize(step + 1, 0.0);
       inverted_sum.resize(step + 1, 0.0);
       count.resize(step + 1, 0);
     }
     pos_sum[step] += pos_mse;
     vel_sum[step] += vel_mse;
+    stress_sum[step] += stress_mse;
     inverted_sum[step] += inverted;
     ++count[step];
   }
@@ -91,18 +95,21 @@ struct MotionErrorSum {
 };
 
 std::optional<FieldRmse> rmse_over(const ErrorCurves& c, size_t steps) {
-  double pos = 0, vel = 0;
+  double pos = 0, vel = 0, stress = 0;
   int64_t n = 0;
   for (size_t s = 0; s < std::min(steps, c.count.size()); ++s) {
     pos += c.pos_sum[s];
     vel += c.vel_sum[s];
+    stress += c.stress_sum[s];
     n += c.count[s];
   }
   if (n == 0) return std::nullopt;
   pos /= static_cast<double>(n);
   vel /= static_cast<double>(n);
+  stress /= static_cast<double>(n);
   FieldRmse rmse;
   rmse.fields = {{"world_pos", std::sqrt(pos)}, {"velocity", std::sqrt(vel)}};
+  if (c.has_stress) rmse.fields["stress"] = std::sqrt(stress);
   rmse.total = std::sqrt(0.5 * (pos + vel));
   return rmse;
 }
@@ -116,12 +123,13 @@ RolloutModel open_member(const std::string& run, const LagrangianSpec& first, co
     throw InputError(folder.config_path + ": --ensemble " + run +
                      " is an Eulerian run; an ensemble averages Lagrangian runs");
   const LagrangianSpec spec = lagrangian_spec_from_json(features, folder.config_path);
-  if (spec.dim != first.dim || spec.first_order != first.first_order)
+  if (spec.dim != first.dim || spec.first_order != first.first_order || spec.stress != first.stress)
     throw InputError(folder.config_path + ": --ensemble " + run + " predicts " +
                      (spec.first_order ? "velocities" : "accelerations") + " in " +
-                     std::to_string(spec.dim) + "-D; the first run " +
-                     (first.first_order ? "velocities" : "accelerations") + " in " +
-                     std::to_string(first.dim) + "-D");
+                     std::to_string(spec.dim) + "-D" + (spec.stress ? " and stress" : "") +
+                     "; the first run " + (first.first_order ? "velocities" : "accelerations") +
+                     " in " + std::to_string(first.dim) + "-D" +
+                     (first.stress ? " and stress" : ""));
   return open_rollout_model(folder, data, data_dir, seeding);
 }
 
@@ -164,6 +172,14 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": a Lagrangian rollout needs the field world_pos");
+  if (spec.stress && !data.has_field("stress"))
+    throw InputError(data.location() +
+                     ": the model predicts stress and the data has no field "
+                     "stress to start from and score against");
+  if (spec.stress && request.symmetrize)
+    throw InputError(config_file +
+                     ": --symmetrize averages motions over the box's symmetries; this run also "
+                     "predicts stress: roll it out without --symmetrize");
   // Frame averaging: each model's prediction averaged over the scene's symmetries.
   std::vector<BoxSymmetry> symmetries;
   if (request.symmetrize) {
@@ -192,6 +208,9 @@ RolloutMetrics rollout(const RolloutRequest& request) {
 
   const double frame_dt = data.frame_dt() > 0 ? data.frame_dt() : 1.0;
   ErrorCurves curves;
+  curves.has_stress = spec.stress;
+  double stress_held_sq = 0;  // reference: the stress of frame 1 held (pooled like curves)
+  int64_t stress_held_count = 0;
   std::vector<double> solver_ms_per_frame;
   // Reference: constant-velocity extrapolation from the first two frames (zero acceleration).
   double inertial_sq = 0.0;
@@ -232,7 +251,15 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     auto raw = data.read(t, "world_pos", 0, frames);
     const auto truth = torch::from_blob(raw.data(), {frames, n, spec.dim}, torch::kFloat32).clone();
     std::vector<torch::Tensor> pred = {truth[0], truth[1]};
-    const MeshGraphs& graphs = store.get(mesh);
+    torch::Tensor truth_stress;  // [frames, n, 1] with a stress output
+    std::vector<torch::Tensor> pred_stress;
+    if (spec.stress) {
+      auto values = data.read(t, "stress", 0, frames);
+      truth_stress = torch::from_blob(values.data(), {frames, n, 1}, torch::kFloat32).clone();
+      pred_stress = {truth_stress[0], truth_stress[1]};
+    }
+    const auto graphs_owner = store.get(mesh);
+    const MeshGraphs& graphs = *graphs_owner;
     // Orientation checks need simplices of the full dimension (e.g. not shells in 3D).
     const bool simplices = mesh.cell_size == spec.dim + 1 && mesh.num_cells() > 0;
     const auto cells = simplices
@@ -294,23 +321,38 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       };
       auto accel = predict(first, state, &batch);
       for (RolloutModel& m : members) {  // the same state through each member's own inputs
-        FrameState own{&m.store->get(mesh), &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
+        FrameState own{m.store->get(mesh).get(), &mesh, seen(f - 1), seen(f), truth[f + 1], {}};
         for (int64_t k = f - 2; k >= 0 && k > f - 1 - m.spec.history; --k)
           own.older.push_back(seen(k));
         accel = accel + predict(m, own, nullptr);
       }
       if (!members.empty()) accel = accel / static_cast<double>(members.size() + 1);
+      torch::Tensor stress;  // predicted on the solved nodes, the truth elsewhere
+      if (spec.stress) {
+        stress = torch::where(batch.mask.unsqueeze(1), accel.narrow(1, spec.dim, 1),
+                              truth_stress[f + 1]);
+        accel = accel.narrow(1, 0, spec.dim);
+      }
       auto next = adapter.integrate(batch, accel, truth[f + 1]);
       if (projector) {
         next = next.contiguous();
         projection_tally.add(projector->project(next.data_ptr<float>()), n);
       }
       tally.infer_ms.push_back(clock.milliseconds());
-      if (!torch::isfinite(next).all().item<bool>()) {
+      if (!torch::isfinite(next).all().item<bool>() ||
+          (stress.defined() && !torch::isfinite(stress).all().item<bool>())) {
         tally.diverged.push_back({t, f + 1});
         break;
       }
       pred.push_back(next);
+      double stress_err = 0;
+      if (stress.defined()) {
+        pred_stress.push_back(stress);
+        stress_err = (stress - truth_stress[f + 1]).pow(2).mean().item<double>();
+        stress_held_sq += (truth_stress[1] - truth_stress[f + 1]).pow(2).mean().item<double>();
+        ++stress_held_count;
+        step_mse["stress"].push_back(stress_err);
+      }
       {
         const auto mask = batch.mask.unsqueeze(1);
         // With teacher forcing the references start from the true frames too: one step at the
@@ -333,7 +375,7 @@ RolloutMetrics rollout(const RolloutRequest& request) {
       const auto vel_err =
           ((next - seen(f)) - (truth[f + 1] - truth[f])).div(frame_dt).pow(2).mean().item<double>();
       curves.add(static_cast<size_t>(f - 1), pos_err, vel_err,
-                 inverted_fraction(cells, reference_sign, next, spec.dim));
+                 inverted_fraction(cells, reference_sign, next, spec.dim), stress_err);
       if (frame_validity) {
         const auto predicted = next.contiguous();
         const auto target = truth[f + 1].contiguous();
@@ -367,6 +409,14 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     const auto target = truth.slice(0, 0, out.num_frames).contiguous();
     out.fields["target_world_pos"] =
         std::vector<float>(target.data_ptr<float>(), target.data_ptr<float>() + target.numel());
+    if (spec.stress) {
+      const auto s = torch::stack(pred_stress).contiguous();
+      out.fields["stress"] =
+          std::vector<float>(s.data_ptr<float>(), s.data_ptr<float>() + s.numel());
+      const auto ts = truth_stress.slice(0, 0, out.num_frames).contiguous();
+      out.fields["target_stress"] =
+          std::vector<float>(ts.data_ptr<float>(), ts.data_ptr<float>() + ts.numel());
+    }
     writer.add(out);
     if (!request.quiet) bar.update(t + 1);
   }
@@ -386,6 +436,12 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.rmse_50 = rmse_over(curves, 50);
   metrics.rmse_all = rmse_over(curves, curves.count.size());
   metrics.rmse_trajectory_mean = horizons.result();
+  if (stress_held_count > 0) {
+    FieldRmse held;
+    held.fields = {{"stress", std::sqrt(stress_held_sq / static_cast<double>(stress_held_count))}};
+    held.total = held.fields["stress"];
+    metrics.rmse_all_persistence = held;
+  }
   if (inertial_count > 0)
     metrics.rmse_all_constant_velocity =
         std::sqrt(inertial_sq / static_cast<double>(inertial_count));
@@ -399,6 +455,11 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   std::vector<double>& per_step = metrics.rmse_per_step["world_pos"];
   for (size_t s = 0; s < curves.count.size(); ++s)
     per_step.push_back(std::sqrt(curves.pos_sum[s] / static_cast<double>(curves.count[s])));
+  if (spec.stress) {
+    std::vector<double>& stress_step = metrics.rmse_per_step["stress"];
+    for (size_t s = 0; s < curves.count.size(); ++s)
+      stress_step.push_back(std::sqrt(curves.stress_sum[s] / static_cast<double>(curves.count[s])));
+  }
   // Stability: the fraction of predicted cells turned inside out (orientation flipped against
   // the first frame), per step and at worst; the ground truth has none (the solver stops on J <=
   // 0).
@@ -419,6 +480,10 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     std::cerr << "bsms rollout: " << count << " trajectories, "
               << (request.one_step ? "one-step (teacher forcing) " : "") << "RMSE-all(world_pos) "
               << (metrics.rmse_all ? metrics.rmse_all->at("world_pos") : 0.0);
+    if (metrics.rmse_all && metrics.rmse_all->fields.count("stress"))
+      std::cerr << ", RMSE-all(stress) " << metrics.rmse_all->at("stress") << " (held "
+                << (metrics.rmse_all_persistence ? metrics.rmse_all_persistence->at("stress") : 0.0)
+                << ")";
     if (metrics.rmse_all_parts)
       std::cerr << " (by body: centre " << metrics.rmse_all_parts->centre << ", rotation "
                 << metrics.rmse_all_parts->rotation << ", deformation "

@@ -13,9 +13,9 @@
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "models/graph_ops.hpp"
+#include "pipeline/adapters/simulator.hpp"
 #include "pipeline/rollout/rollout_outputs.hpp"
 #include "pipeline/runs/run_files.hpp"
-#include "pipeline/adapters/simulator.hpp"
 #include "pipeline/train/trainer.hpp"
 
 namespace bsms {
@@ -82,7 +82,8 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
                        " has fewer than 2 frames");
     const auto truth = read_eulerian_state(data, spec, t, 0, frames);  // [T, N, S]
     const auto truth_p = read_eulerian_pressure(data, spec, t, 0, frames);
-    const MeshGraphs& graphs = store.get(mesh);
+    const auto graphs_owner = store.get(mesh);
+    const MeshGraphs& graphs = *graphs_owner;
     std::vector<torch::Tensor> pred = {truth[0]}, pred_p;
     if (spec.pressure) pred_p.push_back(truth_p[0]);
     torch::Tensor held;  // persistence: the first frame on predicted nodes, the truth elsewhere

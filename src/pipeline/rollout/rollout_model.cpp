@@ -32,7 +32,7 @@ torch::Tensor predict_step(RolloutModel& model, const TrajectoryMesh& mesh,
   const int64_t count = static_cast<int64_t>(frames.size());
   if (count < 2) throw InputError("predict: needs the positions of at least 2 frames");
   const int64_t t = count - 1;
-  FrameState state{&model.store->get(mesh), &mesh, frames[t - 1], frames[t], prescribed, {}};
+  FrameState state{model.store->get(mesh).get(), &mesh, frames[t - 1], frames[t], prescribed, {}};
   for (int64_t k = t - 2; k >= 0 && k > t - 1 - model.spec.history; --k)
     state.older.push_back(frames[k]);
   const Batch batch = model.adapter->make_batch({state});

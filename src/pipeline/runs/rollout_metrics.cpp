@@ -350,6 +350,7 @@ Json to_json(const RolloutMetrics& m) {
     j["rmse_1_persistence"] = to_json(m.rmse_1_persistence);
     j["rmse_all_persistence"] = to_json(m.rmse_all_persistence);
   } else {
+    if (m.rmse_all_persistence) j["rmse_all_persistence"] = to_json(m.rmse_all_persistence);
     j["rmse_all_constant_velocity"] = nullable_json(m.rmse_all_constant_velocity);
     j["inverted_cells_per_step"] = m.inverted_cells_per_step;
     j["inverted_cells_max"] = m.inverted_cells_max;
@@ -433,6 +434,8 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
     m.rmse_1_persistence = field_rmse_from_json(r, "rmse_1_persistence");
     m.rmse_all_persistence = field_rmse_from_json(r, "rmse_all_persistence");
   } else {
+    if (r.has("rmse_all_persistence"))
+      m.rmse_all_persistence = field_rmse_from_json(r, "rmse_all_persistence");
     m.rmse_all_constant_velocity = read_nullable(r, "rmse_all_constant_velocity");
     // Fractions of the cells: in [0, 1] (NaN for a diverged step).
     m.inverted_cells_per_step =

@@ -41,8 +41,8 @@ class HorizonRmse {
   size_t longest_ = 0;
 };
 
-// RMSE-all split by where each body's error lies (pipeline/rollout/body_motion_error.hpp): its centre,
-// its rotation about the centre and its deformation; the squares of the three add up to the
+// RMSE-all split by where each body's error lies (pipeline/rollout/body_motion_error.hpp): its
+// centre, its rotation about the centre and its deformation; the squares of the three add up to the
 // square of the position RMSE-all.
 struct MotionRmse {
   double centre = 0.0, rotation = 0.0, deformation = 0.0;
@@ -162,7 +162,8 @@ struct RolloutMetrics {
   // Lagrangian in 2-D and 3-D: overlap between bodies and nodes outside the walls ("validity");
   // none in files written before it existed.
   std::optional<PhysicalValidityMetrics> validity;
-  // Eulerian: the first frame held on the predicted nodes (no model).
+  // Eulerian: the first frame held on the predicted nodes (no model). Lagrangian with a stress
+  // output: rmse_all_persistence has the stress of the last true frame (1) held, field "stress".
   std::optional<FieldRmse> rmse_1_persistence, rmse_all_persistence;
   std::vector<DivergedTrajectory> diverged;
   double infer_ms_per_step = 0.0;  // median

@@ -20,6 +20,8 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
   c.normalizer_steps = top.opt<int64_t>("normalizer_steps", c.normalizer_steps);
   require(c.normalizer_steps >= 1, top.context("normalizer_steps"), "a positive integer");
   c.seed = top.opt<uint64_t>("seed", c.seed);
+  c.graph_cache_mb = top.opt<int64_t>("graph_cache_mb", c.graph_cache_mb);
+  require(c.graph_cache_mb >= 0, top.context("graph_cache_mb"), ">= 0 (0 = no cap)");
 
   if (top.has("model")) {
     JsonObjectReader m(top.raw("model"), top.context("model"));
@@ -69,6 +71,9 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     c.model.precision = m.opt<std::string>("precision", c.model.precision);
     require(c.model.precision == "float32" || c.model.precision == "bf16", m.context("precision"),
             "\"float32\" or \"bf16\"");
+    c.model.edge_normalizer = m.opt<std::string>("edge_normalizer", c.model.edge_normalizer);
+    require(c.model.edge_normalizer == "on" || c.model.edge_normalizer == "off",
+            m.context("edge_normalizer"), "\"on\" or \"off\"");
     m.finish();
   }
   if (top.has("features")) {
@@ -102,6 +107,14 @@ TrainConfig parse_train_config(const Json& json, const std::string& file) {
     require(c.features.output == "auto" || c.features.output == "acceleration" ||
                 c.features.output == "velocity",
             f.context("output"), "\"auto\", \"acceleration\" or \"velocity\"");
+    c.features.stress = f.opt<std::string>("stress", c.features.stress);
+    require(c.features.stress == "auto" || c.features.stress == "off", f.context("stress"),
+            "\"auto\" or \"off\"");
+    c.features.output_statistics =
+        f.opt<std::string>("output_statistics", c.features.output_statistics);
+    require(c.features.output_statistics == "auto" || c.features.output_statistics == "all" ||
+                c.features.output_statistics == "predicted",
+            f.context("output_statistics"), "\"auto\", \"all\" or \"predicted\"");
     c.features.kinematic_input = f.opt<std::string>("kinematic_input", c.features.kinematic_input);
     require(c.features.kinematic_input == "auto" || c.features.kinematic_input == "on" ||
                 c.features.kinematic_input == "off",
@@ -174,6 +187,7 @@ Json to_json(const TrainConfig& c) {
          {"valid_samples", c.valid_samples},
          {"normalizer_steps", c.normalizer_steps},
          {"seed", c.seed},
+         {"graph_cache_mb", c.graph_cache_mb},
          {"model",
           {{"type", c.model.type},
            {"latent", c.model.latent},
@@ -198,11 +212,16 @@ Json to_json(const TrainConfig& c) {
   // Keys added later are written only when set, so that runs trained before them still match
   // their saved configuration on --resume.
   if (c.model.precision != ModelConfig().precision) j["model"]["precision"] = c.model.precision;
+  if (c.model.edge_normalizer != ModelConfig().edge_normalizer)
+    j["model"]["edge_normalizer"] = c.model.edge_normalizer;
   const FeatureConfig defaults;
   Json& f = j["features"];
   if (c.features.output != defaults.output) f["output"] = c.features.output;
   if (c.features.kinematic_input != defaults.kinematic_input)
     f["kinematic_input"] = c.features.kinematic_input;
+  if (c.features.stress != defaults.stress) f["stress"] = c.features.stress;
+  if (c.features.output_statistics != defaults.output_statistics)
+    f["output_statistics"] = c.features.output_statistics;
   if (c.features.velocity_input != defaults.velocity_input)
     f["velocity_input"] = c.features.velocity_input;
   if (c.features.density_noise_std != defaults.density_noise_std)

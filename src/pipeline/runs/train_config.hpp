@@ -23,6 +23,9 @@ struct ModelConfig {
   // Matrix products of the model's layers: "float32" or "bf16" (models/graph_ops.hpp,
   // MatmulPrecision: bfloat16 operands, float32 everything else).
   std::string precision = "float32";
+  // "on": edge features standardised per channel by normalizers settled with the node
+  // normalizer's (models/networks.hpp GraphModelOptions::edge_normalizer); "off": raw features.
+  std::string edge_normalizer = "off";
 };
 
 struct FeatureConfig {
@@ -56,6 +59,15 @@ struct FeatureConfig {
   // input, as MeshGraphNets does for DeformingPlate: "auto" = on for public MeshGraphNets data,
   // off for bsms data; "on"; "off".
   std::string kinematic_input = "auto";
+  // Lagrangian data with a per-node `stress` field (MeshGraphNets' DeformingPlate): "auto" =
+  // the next frame's stress is a second output, predicted beside the motion with one output
+  // normalizer over both (as MeshGraphNets' plate model); "off" = motion only.
+  std::string stress = "auto";
+  // Rows of the output normalizer's statistics: "predicted" = the nodes the loss covers,
+  // "all" = every node, as MeshGraphNets' reference (its statistics include boundary nodes,
+  // whose targets are zero or prescribed), "auto" = "all" on public MeshGraphNets data,
+  // "predicted" on bsms data.
+  std::string output_statistics = "auto";
   // The velocity x_t - x_{t-1} as an input on solved nodes: "auto" = off for first-order output
   // (quasi-static data, MeshGraphNets' DeformingPlate), on otherwise; "on"; "off".
   std::string velocity_input = "auto";
@@ -117,6 +129,10 @@ struct TrainConfig {
   // Batches whose statistics settle the normalizers before the first optimizer step.
   int64_t normalizer_steps = 1000;
   uint64_t seed = 0;
+  // Memory cap of the meshes' graph hierarchies kept between steps (least recently used ones go
+  // beyond it); 0: no cap. Matters for splits with many distinct meshes (MeshGraphNets' public
+  // sets: one mesh per trajectory).
+  int64_t graph_cache_mb = 4096;
   ModelConfig model;
   FeatureConfig features;
   OptimizerConfig optimizer;

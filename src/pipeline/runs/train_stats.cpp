@@ -24,6 +24,10 @@ Json to_json(const TrainStats& s) {
   if (!s.allocator.empty()) j["allocator"] = s.allocator;
   if (s.allreduce_ms_per_step) j["allreduce_ms_per_step"] = *s.allreduce_ms_per_step;
   if (s.allreduce_calls_per_step) j["allreduce_calls_per_step"] = *s.allreduce_calls_per_step;
+  if (s.seconds_to_first_step) j["seconds_to_first_step"] = *s.seconds_to_first_step;
+  if (s.graphs_made) j["graphs_made"] = *s.graphs_made;
+  if (s.graphs_evicted) j["graphs_evicted"] = *s.graphs_evicted;
+  if (s.graph_cache_peak_mb) j["graph_cache_peak_mb"] = *s.graph_cache_peak_mb;
   return j;
 }
 
@@ -51,6 +55,12 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
     s.allreduce_ms_per_step = read_at_least(r, "allreduce_ms_per_step");
   if (r.has("allreduce_calls_per_step"))
     s.allreduce_calls_per_step = read_at_least(r, "allreduce_calls_per_step");
+  if (r.has("seconds_to_first_step"))
+    s.seconds_to_first_step = read_at_least(r, "seconds_to_first_step");
+  if (r.has("graphs_made")) s.graphs_made = read_int_at_least<int64_t>(r, "graphs_made", 0);
+  if (r.has("graphs_evicted"))
+    s.graphs_evicted = read_int_at_least<int64_t>(r, "graphs_evicted", 0);
+  if (r.has("graph_cache_peak_mb")) s.graph_cache_peak_mb = read_at_least(r, "graph_cache_peak_mb");
   r.finish();
   return s;
 }

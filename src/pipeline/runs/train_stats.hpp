@@ -33,6 +33,13 @@ struct TrainStats {
   // Data-parallel sessions: rank 0's time in the gradient all-reduce per step (waiting for slower
   // ranks included) and the all-reduce calls per step; none for a single process.
   std::optional<double> allreduce_ms_per_step, allreduce_calls_per_step;
+  // The session's start-up: wall seconds from the start of training (the data opened, the model
+  // resolved, the normalizers settled) to the first optimizer step; none without a step.
+  std::optional<double> seconds_to_first_step;
+  // The session's graph hierarchies (GraphStore): made (loaded from the disk cache or built),
+  // evicted under graph_cache_mb, and the most held at once.
+  std::optional<int64_t> graphs_made, graphs_evicted;
+  std::optional<double> graph_cache_peak_mb;
 };
 
 Json to_json(const TrainStats& stats);

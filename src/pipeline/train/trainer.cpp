@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -25,12 +26,13 @@
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
 #include "pipeline/adapters/eulerian.hpp"
-#include "pipeline/train/fit.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
-#include "pipeline/runs/run_files.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_log.hpp"
 #include "pipeline/runs/train_stats.hpp"
+#include "pipeline/train/fit.hpp"
+#include "pipeline/train/prefetch.hpp"
 #include "pipeline/train/training_data.hpp"
 
 namespace bsms {
@@ -117,7 +119,27 @@ void check_train_request(const TrainRequest& request) {
   if (Dataset::has_split(config.data, "valid")) Dataset::open_split(config.data, "valid");
 }
 
+namespace {
+
+// The order in which training asks for batches: the normaliser's (indices -2, -3, ...; a fresh
+// run only), then the optimizer steps from `first_step` on. Positions count them from 0 (what
+// the prefetcher follows).
+struct BatchOrder {
+  int64_t first_step = 0;
+  int64_t normalizer_batches = 0;
+  int64_t index_at(int64_t position) const {
+    return position < normalizer_batches ? -2 - position
+                                         : first_step + (position - normalizer_batches);
+  }
+  int64_t position_of(int64_t index) const {
+    return index <= -2 ? -2 - index : normalizer_batches + (index - first_step);
+  }
+};
+
+}  // namespace
+
 TrainResult train(const TrainRequest& request) {
+  const auto started = std::chrono::steady_clock::now();
   TrainConfig config = load_train_config(request);
   const int threads = configure_threads(set_num_threads(requested_threads(request)));
   torch::manual_seed(config.seed);
@@ -192,11 +214,12 @@ TrainResult train(const TrainRequest& request) {
         for (auto* j : {&a, &b}) {
           j->erase("steps");
           j->erase("time_budget_s");
+          j->erase("graph_cache_mb");
         }
         if (a != b || before_run.levels != resolved.levels)
           throw InputError(run_config_path(run) +
                            ": the run was trained with another configuration; "
-                           "only steps and time_budget_s may change on --resume");
+                           "only steps, time_budget_s and graph_cache_mb may change on --resume");
         const int before = before_run.world_size;
         if (before != world)
           std::cerr << "bsms train: warning: " << one_line(run, 300) << " was trained with "
@@ -231,7 +254,8 @@ TrainResult train(const TrainRequest& request) {
     std::error_code ec;
     fs::create_directories(d, ec);
   }
-  GraphStore store(config.model.seeding, resolved.levels, cache_dirs);
+  GraphStore store(config.model.seeding, resolved.levels, cache_dirs, 0, false,
+                   config.graph_cache_mb * (int64_t{1} << 20));
   auto simulator =
       std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
   FusedAdam optimizer(simulator->parameters(), torch::optim::AdamOptions(config.optimizer.lr));
@@ -299,7 +323,20 @@ TrainResult train(const TrainRequest& request) {
     simulator->train();
     return out;
   };
+  const BatchOrder order{step, request.resume ? 0 : config.normalizer_steps};
+  Prefetcher prefetcher(
+      train_data, store,
+      [&, order](int64_t position) {
+        std::vector<int64_t> trajectories;
+        for (int k = 0; k < per_rank; ++k)
+          trajectories.push_back(
+              draw_sample(train_data, config.seed, order.index_at(position), rank * per_rank + k)
+                  .trajectory);
+        return trajectories;
+      },
+      std::clamp<int64_t>(256 / std::max(per_rank, 1), 1, 8));  // batches ahead, <= 256 samples
   auto training_batch = [&](int64_t index) {
+    prefetcher.reached(order.position_of(index));
     std::vector<SampleRef> refs;
     std::vector<at::Generator> generators;
     for (int k = 0; k < per_rank; ++k) {
@@ -318,9 +355,12 @@ TrainResult train(const TrainRequest& request) {
   // drawn apart from the training steps'), summed over the ranks. A resumed run has them in its
   // checkpoint; a fresh one starts every rank from rank 0's parameters.
   if (!request.resume) {
+    const bool all_nodes =
+        config.features.output_statistics == "all" ||
+        (config.features.output_statistics == "auto" && train_data.is_public_layout());
     for (int64_t i = 0; i < config.normalizer_steps; ++i) {
       const TrainBatch b = training_batch(-2 - i);
-      simulator->accumulate_statistics(b.batch, b.target);
+      simulator->accumulate_statistics(b.batch, b.target, all_nodes);
     }
     if (comm) {
       comm->broadcast(simulator->parameters(), 0, "broadcast of the initial parameters");
@@ -363,7 +403,11 @@ TrainResult train(const TrainRequest& request) {
   fit_options.quiet = quiet;
   Validation last_valid{resumed.valid_loss, resumed.valid_baseline};
   FitHooks hooks;
+  std::optional<double> seconds_to_first_step;
   hooks.loss = [&](int64_t index) {
+    if (!seconds_to_first_step)
+      seconds_to_first_step =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     const TrainBatch b = training_batch(index);
     return simulator->loss(b.batch, b.target, config.features.rigid_loss_weight);
   };
@@ -442,6 +486,11 @@ TrainResult train(const TrainRequest& request) {
   stats.valid_split = has_valid ? "valid" : "train";
   stats.blas = blas_config();
   stats.allocator = allocator_name();
+  stats.seconds_to_first_step = seconds_to_first_step;
+  const GraphStore::Stats graphs = store.stats();
+  stats.graphs_made = graphs.builds;
+  stats.graphs_evicted = graphs.evictions;
+  stats.graph_cache_peak_mb = static_cast<double>(graphs.peak_bytes) / (1 << 20);
   if (comm && session_steps > 0) {
     stats.allreduce_ms_per_step = (comm->collective_ms - collective_ms_before) / session_steps;
     stats.allreduce_calls_per_step =
@@ -458,7 +507,9 @@ TrainResult train(const TrainRequest& request) {
     std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
               << last_valid.loss << " (zero prediction " << last_valid.baseline << "), "
               << stats.train_ms_per_step << " ms/step (median), peak RSS " << peak_rss_mb()
-              << " MB\n";
+              << " MB; graphs: " << graphs.builds << " made, " << graphs.evictions
+              << " evicted, peak " << std::fixed << std::setprecision(1)
+              << *stats.graph_cache_peak_mb << " MB\n";
   return result;
 }
 

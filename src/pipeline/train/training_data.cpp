@@ -38,6 +38,7 @@ struct LoadedSample {
   FrameState state;
   torch::Tensor next;
   torch::Tensor truth;  // [before + 3, N, dim]: the true frames t-1-before .. t+1
+  std::shared_ptr<const MeshGraphs> graphs;  // keeps state.graphs alive (the store may evict)
 };
 
 // Sample `ref` (frame t) with the state at frames t-1-before and t-before (the truth; before > 0
@@ -55,7 +56,8 @@ LoadedSample load_sample(const Dataset& data, GraphStore& store, const SampleRef
       torch::from_blob(frames.data(), {extra + before + 3, n, dim}, torch::kFloat32).clone();
   LoadedSample s;
   s.truth = all.narrow(0, extra, before + 3);
-  s.state.graphs = &store.get(mesh);
+  s.graphs = store.get(mesh);
+  s.state.graphs = s.graphs.get();
   s.state.mesh = &mesh;
   s.state.prev = s.truth[0];
   s.state.cur = s.truth[1];
@@ -101,7 +103,8 @@ double rms_strain(const Dataset& data, GraphStore& store, uint64_t seed) {
   for (int i = 0; i < 64; ++i) {
     const SampleRef ref = draw_sample(data, seed ^ 0x9e3779b97f4a7c15ull, -3, i);
     const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
-    const MeshGraphs& graphs = store.get(mesh);
+    const auto graphs_owner = store.get(mesh);
+    const MeshGraphs& graphs = *graphs_owner;
     const int64_t n = mesh.num_nodes();
     auto frame = data.read(ref.trajectory, position_field(data), ref.frame, 1);
     const auto x = torch::from_blob(frame.data(), {n, data.dim()}, torch::kFloat32);
@@ -191,7 +194,7 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
                                                                 : std::max(max_type + 1, 4);
   // Position scale: mean mesh edge length of the first training mesh.
   GraphStore probe(Seeding::kCloseCenter, 1, {});
-  const double edge = probe.get(train_data.mesh(0)).mean_edge_length;
+  const double edge = probe.get(train_data.mesh(0))->mean_edge_length;
   if (config.model.type == "mgn") {
     r.levels = 1;
   } else {
@@ -226,6 +229,14 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
   s.num_node_types = num_node_types;
   s.position_scale = edge > 0 ? edge : 1.0;
   s.first_order = config.features.output == "velocity";
+  s.stress = config.features.stress == "auto" && train_data.has_field("stress");
+  if (s.stress) {
+    for (const auto& f : train_data.fields())
+      if (f.name == "stress" && f.width != 1)
+        throw InputError(train_data.location() + ": field stress has " + std::to_string(f.width) +
+                         " components; a stress output needs one per node (von Mises), or set "
+                         "features.stress to \"off\"");
+  }
   s.kinematic_input = config.features.kinematic_input == "on" ||
                       (config.features.kinematic_input == "auto" && public_layout);
   s.velocity_input = config.features.velocity_input == "on" ||
@@ -305,10 +316,12 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     const EulerianAdapter adapter(r.eulerian_spec);
     std::vector<EulerianFrame> frames;
     std::vector<torch::Tensor> nexts, pressures;
+    std::vector<std::shared_ptr<const MeshGraphs>> owners;  // alive until the batch is made
     for (const SampleRef& ref : refs) {
       const TrajectoryMesh& mesh = data.mesh(ref.trajectory);
       const auto state = read_eulerian_state(data, r.eulerian_spec, ref.trajectory, ref.frame, 2);
-      frames.push_back({&store.get(mesh), &mesh, state[0]});
+      owners.push_back(store.get(mesh));
+      frames.push_back({owners.back().get(), &mesh, state[0]});
       nexts.push_back(state[1]);
       if (r.eulerian_spec.pressure)
         pressures.push_back(
@@ -334,6 +347,7 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
   std::vector<FrameState> states;
   std::vector<torch::Tensor> nexts, noise, drifts, truth_prevs, truth_curs;
   std::deque<TrajectoryMesh> mapped_meshes;  // augmented samples' meshes (stable addresses)
+  std::vector<std::shared_ptr<const MeshGraphs>> owners;  // alive until the batch is made
   for (size_t k = 0; k < refs.size(); ++k) {
     LoadedSample s = unroll > 0
                          ? pushed_forward_sample(adapter, data, store, refs[k], unroll, *predictor)
@@ -366,6 +380,7 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     }
     if (noisy)
       noise.push_back(adapter.scale_rigid_noise(s.state, raw, config.features.noise_rigid_scale));
+    owners.push_back(s.graphs);
     states.push_back(s.state);
     nexts.push_back(s.next);
     if (unroll > 0) {  // the truth at t-1 and t, and how far the rollout drifted from it
@@ -383,11 +398,21 @@ TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, c
     truth.prev = torch::cat(truth_prevs, 0);
     truth.cur = torch::cat(truth_curs, 0) + b.batch.noise;
     b.target = adapter.target(truth, torch::cat(nexts, 0), config.features.noise_gamma);
-    return b;
+  } else {
+    if (!drifts.empty()) b.batch.noise = b.batch.noise + torch::cat(drifts, 0);
+    b.target =
+        adapter.target(b.batch, torch::cat(nexts, 0), noisy ? config.features.noise_gamma : 1.0);
   }
-  if (!drifts.empty()) b.batch.noise = b.batch.noise + torch::cat(drifts, 0);
-  b.target =
-      adapter.target(b.batch, torch::cat(nexts, 0), noisy ? config.features.noise_gamma : 1.0);
+  if (r.spec.stress) {
+    // The next frame's stress, a per-node scalar: the same under the augmentation's symmetries.
+    std::vector<torch::Tensor> stresses;
+    for (const SampleRef& ref : refs) {
+      const int64_t n = data.mesh(ref.trajectory).num_nodes();
+      auto values = data.read(ref.trajectory, "stress", ref.frame + 1, 1);
+      stresses.push_back(torch::from_blob(values.data(), {n, 1}, torch::kFloat32).clone());
+    }
+    b.target = torch::cat({b.target, torch::cat(stresses, 0)}, 1);
+  }
   return b;
 }
 
