@@ -3,7 +3,6 @@
 #include <fcntl.h>
 #include <google/protobuf/io/coded_stream.h>
 #include <google/protobuf/io/zero_copy_stream.h>
-#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 #include <google/protobuf/wire_format_lite.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -14,6 +13,7 @@
 #include <climits>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <vector>
@@ -29,7 +29,6 @@ namespace bsms::tfrecord {
 namespace {
 
 using google::protobuf::internal::WireFormatLite;
-using google::protobuf::io::ArrayInputStream;
 using google::protobuf::io::CodedInputStream;
 using google::protobuf::io::ZeroCopyInputStream;
 
@@ -235,12 +234,14 @@ struct TfRecordReader::Impl {
 
 namespace {
 
-// Record data read from a file on demand, a block at a time: the wire walk reads tags, keys and
-// lengths and skips the payloads without reading them.
-class PreadStream : public ZeroCopyInputStream {
+// Record data read on demand, a block at a time, by `read(offset, dst, n)` (the reader's
+// read_at: a file or a memory image): the wire walk reads tags, keys and lengths and skips the
+// payloads without reading them.
+class BlockStream : public ZeroCopyInputStream {
  public:
-  PreadStream(int fd, uint64_t begin, uint64_t length, std::string what)
-      : fd_(fd), begin_(begin), length_(length), what_(std::move(what)) {}
+  using Read = std::function<void(uint64_t offset, void* dst, size_t n)>;
+  BlockStream(Read read, uint64_t begin, uint64_t length)
+      : read_(std::move(read)), begin_(begin), length_(length) {}
 
   bool Next(const void** data, int* size) override {
     if (pos_ >= buffer_start_ && pos_ < buffer_end_) {  // what BackUp returned
@@ -251,17 +252,7 @@ class PreadStream : public ZeroCopyInputStream {
     }
     if (pos_ >= length_) return false;
     const size_t n = static_cast<size_t>(std::min<uint64_t>(buffer_.size(), length_ - pos_));
-    size_t done = 0;
-    while (done < n) {
-      const ssize_t got =
-          ::pread(fd_, buffer_.data() + done, n - done, static_cast<off_t>(begin_ + pos_ + done));
-      if (got < 0 && errno == EINTR) continue;
-      if (got < 0) throw InputError(what_ + ": read failed: " + std::strerror(errno));
-      if (got == 0)
-        throw InputError(what_ + ": truncated (the file ended at offset " +
-                         std::to_string(begin_ + pos_ + done) + ")");
-      done += static_cast<size_t>(got);
-    }
+    read_(begin_ + pos_, buffer_.data(), n);
     buffer_start_ = pos_;
     buffer_end_ = pos_ + n;
     *data = buffer_.data();
@@ -282,9 +273,8 @@ class PreadStream : public ZeroCopyInputStream {
   int64_t ByteCount() const override { return static_cast<int64_t>(pos_); }
 
  private:
-  int fd_;
+  Read read_;
   uint64_t begin_, length_;
-  std::string what_;
   std::array<uint8_t, 4096> buffer_{};
   uint64_t pos_ = 0, buffer_start_ = 0, buffer_end_ = 0;
 };
@@ -433,14 +423,10 @@ RecordLayout TfRecordReader::Impl::walk(int64_t r) const {
   if (length > static_cast<uint64_t>(INT_MAX))
     throw InputError(what + ": " + std::to_string(length) +
                      " bytes; records over 2 GiB are not supported");
-  std::map<std::string, WireBytes> wire;
-  if (fd >= 0) {
-    PreadStream in(fd, base, length, what);
-    wire = ExampleWalker(&in, static_cast<int>(length), what).run();
-  } else {
-    ArrayInputStream in(memory.data() + base, static_cast<int>(length));
-    wire = ExampleWalker(&in, static_cast<int>(length), what).run();
-  }
+  BlockStream in([&](uint64_t offset, void* dst, size_t n) { read_at(offset, dst, n, what); }, base,
+                 length);
+  const std::map<std::string, WireBytes> wire =
+      ExampleWalker(&in, static_cast<int>(length), what).run();
   RecordLayout layout;
   std::string n_field;
   auto bytes_of = [&](const std::string& name, const std::string& where) -> const WireBytes& {
