@@ -403,19 +403,12 @@ RolloutMetrics rollout(const RolloutRequest& request) {
     out.seed = data.seed(t);
     out.parameters = data.parameters(t);
     out.num_frames = static_cast<int64_t>(pred.size());
-    const auto stacked = torch::stack(pred).contiguous();
-    out.fields["world_pos"] =
-        std::vector<float>(stacked.data_ptr<float>(), stacked.data_ptr<float>() + stacked.numel());
-    const auto target = truth.slice(0, 0, out.num_frames).contiguous();
-    out.fields["target_world_pos"] =
-        std::vector<float>(target.data_ptr<float>(), target.data_ptr<float>() + target.numel());
+    out.fields["world_pos"] = rollout_outputs::to_floats(torch::stack(pred));
+    out.fields["target_world_pos"] = rollout_outputs::to_floats(truth.slice(0, 0, out.num_frames));
     if (spec.stress) {
-      const auto s = torch::stack(pred_stress).contiguous();
-      out.fields["stress"] =
-          std::vector<float>(s.data_ptr<float>(), s.data_ptr<float>() + s.numel());
-      const auto ts = truth_stress.slice(0, 0, out.num_frames).contiguous();
+      out.fields["stress"] = rollout_outputs::to_floats(torch::stack(pred_stress));
       out.fields["target_stress"] =
-          std::vector<float>(ts.data_ptr<float>(), ts.data_ptr<float>() + ts.numel());
+          rollout_outputs::to_floats(truth_stress.slice(0, 0, out.num_frames));
     }
     writer.add(out);
     if (!request.quiet) bar.update(t + 1);

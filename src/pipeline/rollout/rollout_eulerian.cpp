@@ -136,8 +136,7 @@ RolloutMetrics rollout_eulerian(const RolloutRequest& request, const TrainConfig
     out.parameters = data.parameters(t);
     out.num_frames = static_cast<int64_t>(pred.size());
     auto put = [&](const std::string& name, const torch::Tensor& v) {
-      const auto c = v.contiguous();
-      out.fields[name] = std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
+      out.fields[name] = rollout_outputs::to_floats(v);
     };
     const auto stacked = torch::stack(pred);
     const auto target = truth.slice(0, 0, out.num_frames);

@@ -12,6 +12,11 @@
 #include "pipeline/train/trainer.hpp"
 
 namespace bsms::rollout_outputs {
+
+std::vector<float> to_floats(const torch::Tensor& t) {
+  const auto c = t.to(torch::kFloat32).contiguous();
+  return std::vector<float>(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
+}
 namespace fs = std::filesystem;
 
 fs::path out_dir(const RolloutRequest& request) {

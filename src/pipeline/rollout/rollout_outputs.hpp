@@ -3,6 +3,8 @@
 // run copied into its rollout metrics.
 #pragma once
 
+#include <torch/types.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -24,6 +26,9 @@ std::filesystem::path out_dir(const RolloutRequest& request);
 // dataset being rolled out (`--out` the `--data` folder), which the predictions would replace.
 std::string prediction_file(const std::filesystem::path& out_dir, const std::string& split,
                             const Dataset& data);
+
+// A tensor's values as a flat float32 vector (a written trajectory's field).
+std::vector<float> to_floats(const torch::Tensor& t);
 
 // The XDMF companions of a written rollout file (SPLIT_000000.xdmf, ...) beside it.
 void write_xdmf_files(const std::string& out_h5, const std::filesystem::path& out_dir,
