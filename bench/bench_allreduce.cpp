@@ -19,8 +19,9 @@
 #include <vector>
 
 #include "core/runtime.hpp"
-#include "pipeline/distributed/distributed.hpp"
+#include "pipeline/adapters/lagrangian.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/distributed/distributed.hpp"
 
 namespace {
 
@@ -39,7 +40,7 @@ int run_rank(int rank, int world, int port, int repeats) {
     bsms::LagrangianSpec spec;  // disks2d: 2-D, contact edges, strain channel
     spec.contact_radius = 0.035;
     spec.strain_scale = 0.01;
-    bsms::LearnedSimulator model(spec, config, 5);
+    bsms::LearnedSimulator model(bsms::LagrangianAdapter(spec).model_shape(), config, 5);
     std::vector<torch::Tensor> grads;
     int64_t values = 0;
     for (const auto& p : model.parameters()) {

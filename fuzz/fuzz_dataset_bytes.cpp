@@ -68,7 +68,10 @@ const Originals& originals() {
     fs::create_directories(dir);
     const bsms::TrajectoryMesh mesh = grid_mesh();
     {
-      bsms::DatasetWriter w(dir + "/train.h5", R"({"name": "grid"})", 2, 0.04);
+      // A scene as `bsms generate` stores one (a family file), which the reader parses strictly.
+      bsms::DatasetWriter w(dir + "/train.h5", R"({"scene": {"dim": 2, "background": {"type": "box",
+          "min": [0, 0], "max": [1, 1], "element_size": 0.1}, "solver": {"end_time": 1.0}}})",
+                            2, 0.04);
       for (int64_t k = 0; k < 2; ++k) {
         bsms::Trajectory t;
         t.mesh = mesh;

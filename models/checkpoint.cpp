@@ -290,9 +290,10 @@ bool is_index(const std::string& s) {
          (s == "0" || s[0] != '0');
 }
 
-CheckpointContents read_contents(const Reader& r) {
+// The root's format, version and kind attributes checked; returns the kind ("training" or
+// "module").
+std::string read_kind(const Reader& r) {
   const H5File& f = r.file();
-  CheckpointContents c;
   const std::string format = f.has_attr("/", "format") ? f.attr_string("/", "format") : "";
   if (format != kCheckpointFormat)
     r.fail("not a bsms checkpoint (format attribute '" + clip(format) + "', expected '" +
@@ -304,12 +305,11 @@ CheckpointContents read_contents(const Reader& r) {
   const std::string kind = r.file().attr_string("/", "kind");
   if (kind != "training" && kind != "module")
     r.fail("kind '" + clip(kind) + "' (expected 'training' or 'module')");
-  c.training = kind == "training";
+  return kind;
+}
 
-  for (const auto& m : r.members("/"))
-    if (!(m == "model" || (c.training && m == "optimizer")))
-      r.fail(m, "is not part of a " + kind + " checkpoint (unexpected entry)");
-
+// The model's entries, in the group's order.
+void read_model(const Reader& r, CheckpointContents& c) {
   // The entry count, stored apart from the group's index, names a lost or added entry even
   // without a model to compare with (bsms info).
   const std::vector<std::string> entries = r.members(kModel);
@@ -318,9 +318,9 @@ CheckpointContents read_contents(const Reader& r) {
     r.fail("model", "has " + std::to_string(entries.size()) + " entries, its count says " +
                         std::to_string(count) + " (an entry lost or added)");
   for (const auto& m : entries) c.model.push_back({m, r.tensor(std::string(kModel) + "/" + m)});
-  if (!c.training) return c;
+}
 
-  TrainingState& s = c.state;
+void read_training_state(const Reader& r, TrainingState& s) {
   s.step = r.int_attr("/", "step");
   if (s.step < 0) r.fail("step " + std::to_string(s.step) + " (expected >= 0)");
   s.wall_s = r.double_attr("/", "wall_s");
@@ -328,45 +328,86 @@ CheckpointContents read_contents(const Reader& r) {
     r.fail("wall_s " + std::to_string(s.wall_s) + " (expected a finite time >= 0)");
   s.loss = r.double_attr("/", "loss");
   s.valid_loss = r.double_attr("/", "valid_loss");
-  s.valid_baseline = r.double_attr("/", "valid_baseline");
+  s.valid_zero_prediction = r.double_attr("/", "valid_zero_prediction");
+}
 
+// One parameter group's settings, checked; `total`: the parameters of the groups before it.
+AdamGroup read_group(const Reader& r, const std::string& group, int64_t total) {
+  if (!r.file().is_hard_link(group) || !r.file().is_group(group))
+    r.fail(Reader::entry_of(group), "is missing or not a group");
+  AdamGroup o;
+  o.lr = r.double_attr(group, "lr");
+  o.beta1 = r.double_attr(group, "beta1");
+  o.beta2 = r.double_attr(group, "beta2");
+  o.eps = r.double_attr(group, "eps");
+  o.weight_decay = r.double_attr(group, "weight_decay");
+  const int64_t amsgrad = r.int_attr(group, "amsgrad");
+  o.size = r.int_attr(group, "size");
+  const std::string entry = Reader::entry_of(group);
+  if (!std::isfinite(o.lr) || o.lr < 0) r.fail(entry, "has lr " + std::to_string(o.lr));
+  if (!(o.beta1 >= 0 && o.beta1 < 1) || !(o.beta2 >= 0 && o.beta2 < 1))
+    r.fail(entry, "has betas outside [0, 1)");
+  if (!std::isfinite(o.eps) || o.eps <= 0) r.fail(entry, "has eps " + std::to_string(o.eps));
+  if (!std::isfinite(o.weight_decay) || o.weight_decay < 0)
+    r.fail(entry, "has weight_decay " + std::to_string(o.weight_decay));
+  if (amsgrad != 0 && amsgrad != 1) r.fail(entry, "has amsgrad " + std::to_string(amsgrad));
+  if (o.size < 0 || o.size > 100000000 || total + o.size > 100000000)
+    r.fail(entry, "has size " + std::to_string(o.size));
+  o.amsgrad = amsgrad == 1;
+  return o;
+}
+
+// The optimizer's parameter groups into c.groups; returns whether each parameter (by index) uses
+// amsgrad; `total` receives the parameter count.
+std::vector<bool> read_groups(const Reader& r, CheckpointContents& c, int64_t& total) {
   const int64_t groups = r.int_attr(kOptimizer, "groups");
   if (groups < 1 || groups > 1000)
     r.fail("optimizer", "has " + std::to_string(groups) + " parameter groups");
   std::set<std::string> expected_members = {"state"};
-  int64_t total = 0;
+  total = 0;
   std::vector<bool> amsgrad_of;  // per parameter index
   for (int64_t g = 0; g < groups; ++g) {
     const std::string group = std::string(kOptimizer) + "/group_" + std::to_string(g);
     expected_members.insert("group_" + std::to_string(g));
-    if (!f.is_hard_link(group) || !f.is_group(group))
-      r.fail(Reader::entry_of(group), "is missing or not a group");
-    AdamGroup o;
-    o.lr = r.double_attr(group, "lr");
-    o.beta1 = r.double_attr(group, "beta1");
-    o.beta2 = r.double_attr(group, "beta2");
-    o.eps = r.double_attr(group, "eps");
-    o.weight_decay = r.double_attr(group, "weight_decay");
-    const int64_t amsgrad = r.int_attr(group, "amsgrad");
-    o.size = r.int_attr(group, "size");
-    const std::string entry = Reader::entry_of(group);
-    if (!std::isfinite(o.lr) || o.lr < 0) r.fail(entry, "has lr " + std::to_string(o.lr));
-    if (!(o.beta1 >= 0 && o.beta1 < 1) || !(o.beta2 >= 0 && o.beta2 < 1))
-      r.fail(entry, "has betas outside [0, 1)");
-    if (!std::isfinite(o.eps) || o.eps <= 0) r.fail(entry, "has eps " + std::to_string(o.eps));
-    if (!std::isfinite(o.weight_decay) || o.weight_decay < 0)
-      r.fail(entry, "has weight_decay " + std::to_string(o.weight_decay));
-    if (amsgrad != 0 && amsgrad != 1) r.fail(entry, "has amsgrad " + std::to_string(amsgrad));
-    if (o.size < 0 || o.size > 100000000 || total + o.size > 100000000)
-      r.fail(entry, "has size " + std::to_string(o.size));
-    o.amsgrad = amsgrad == 1;
+    const AdamGroup o = read_group(r, group, total);
     c.groups.push_back(o);
     total += o.size;
     amsgrad_of.insert(amsgrad_of.end(), static_cast<size_t>(o.size), o.amsgrad);
   }
   for (const auto& m : r.members(kOptimizer))
     if (!expected_members.count(m)) r.fail("optimizer/" + m, "is not part of an optimizer");
+  return amsgrad_of;
+}
 
+// The state of parameter `index`, stored under `object`, with its moments checked.
+AdamSlot read_slot(const Reader& r, int64_t index, const std::string& object, bool amsgrad) {
+  const std::string entry = Reader::entry_of(object);
+  const int64_t step = r.int_attr(object, "step");
+  if (step < 0) r.fail(entry, "has step " + std::to_string(step) + " (expected >= 0)");
+  AdamSlot slot;
+  slot.index = index;
+  slot.step = step;
+  slot.parameter = r.file().attr_string(object, "parameter");
+  const std::vector<std::string> present = r.members(object);
+  for (const auto& p : present)
+    if (std::find(std::begin(kMoments), std::end(kMoments) - (amsgrad ? 0 : 1), p) ==
+        std::end(kMoments) - (amsgrad ? 0 : 1))
+      r.fail(entry + "/" + clip(p), "is not part of Adam's state");
+  for (int k = 0; k < (amsgrad ? 3 : 2); ++k) {
+    const std::string field = kMoments[k];
+    if (std::find(present.begin(), present.end(), field) == present.end())
+      r.fail(entry + "/" + field, "is missing");
+    torch::Tensor t = r.tensor(object + "/" + field);
+    if (k > 0 && (t < 0).any().item<bool>())
+      r.fail(entry + "/" + field, "has a negative value (a mean of squares)");
+    (k == 0 ? slot.exp_avg : k == 1 ? slot.exp_avg_sq : slot.max_exp_avg_sq) = t;
+  }
+  return slot;
+}
+
+// The optimizer's per-parameter states into c.slots, by ascending parameter index.
+void read_slots(const Reader& r, const std::vector<bool>& amsgrad_of, int64_t total,
+                CheckpointContents& c) {
   std::vector<std::pair<int64_t, std::string>> indices;
   const std::vector<std::string> states = r.members(kState);
   const int64_t state_count = r.int_attr(kState, "count");
@@ -380,32 +421,24 @@ CheckpointContents read_contents(const Reader& r) {
     indices.emplace_back(std::stoll(m), m);
   }
   std::sort(indices.begin(), indices.end());
-  for (const auto& [index, m] : indices) {
-    const std::string object = std::string(kState) + "/" + m;
-    const std::string entry = Reader::entry_of(object);
-    const int64_t step = r.int_attr(object, "step");
-    if (step < 0) r.fail(entry, "has step " + std::to_string(step) + " (expected >= 0)");
-    AdamSlot slot;
-    slot.index = index;
-    slot.step = step;
-    slot.parameter = f.attr_string(object, "parameter");
-    const bool amsgrad = amsgrad_of[static_cast<size_t>(index)];
-    const std::vector<std::string> present = r.members(object);
-    for (const auto& p : present)
-      if (std::find(std::begin(kMoments), std::end(kMoments) - (amsgrad ? 0 : 1), p) ==
-          std::end(kMoments) - (amsgrad ? 0 : 1))
-        r.fail(entry + "/" + clip(p), "is not part of Adam's state");
-    for (int k = 0; k < (amsgrad ? 3 : 2); ++k) {
-      const std::string field = kMoments[k];
-      if (std::find(present.begin(), present.end(), field) == present.end())
-        r.fail(entry + "/" + field, "is missing");
-      torch::Tensor t = r.tensor(object + "/" + field);
-      if (k > 0 && (t < 0).any().item<bool>())
-        r.fail(entry + "/" + field, "has a negative value (a mean of squares)");
-      (k == 0 ? slot.exp_avg : k == 1 ? slot.exp_avg_sq : slot.max_exp_avg_sq) = t;
-    }
-    c.slots.push_back(std::move(slot));
-  }
+  for (const auto& [index, m] : indices)
+    c.slots.push_back(
+        read_slot(r, index, std::string(kState) + "/" + m, amsgrad_of[static_cast<size_t>(index)]));
+}
+
+CheckpointContents read_contents(const Reader& r) {
+  CheckpointContents c;
+  const std::string kind = read_kind(r);
+  c.training = kind == "training";
+  for (const auto& m : r.members("/"))
+    if (!(m == "model" || (c.training && m == "optimizer")))
+      r.fail(m, "is not part of a " + kind + " checkpoint (unexpected entry)");
+  read_model(r, c);
+  if (!c.training) return c;
+  read_training_state(r, c.state);
+  int64_t total = 0;
+  const std::vector<bool> amsgrad_of = read_groups(r, c, total);
+  read_slots(r, amsgrad_of, total, c);
   return c;
 }
 
@@ -506,7 +539,7 @@ void write_checkpoint_contents(const std::string& path, const CheckpointContents
       f.set_attr("/", "wall_s", c.state.wall_s);
       f.set_attr("/", "loss", c.state.loss);
       f.set_attr("/", "valid_loss", c.state.valid_loss);
-      f.set_attr("/", "valid_baseline", c.state.valid_baseline);
+      f.set_attr("/", "valid_zero_prediction", c.state.valid_zero_prediction);
       f.create_group(kState);
       f.set_attr(kState, "count", static_cast<int64_t>(c.slots.size()));
       f.set_attr(kOptimizer, "groups", static_cast<int64_t>(c.groups.size()));

@@ -26,7 +26,7 @@ struct TrainingState {
   double wall_s = 0.0;
   double loss = std::nan("");
   double valid_loss = std::nan("");
-  double valid_baseline = std::nan("");
+  double valid_zero_prediction = std::nan("");
 };
 
 // Writes `module` (and, for a training checkpoint, `optimizer` and `state`; both or neither) to

@@ -155,9 +155,16 @@ BSMS_ROW_KERNEL void edge_first_row(const float* base, const float* bias, const 
   for (int64_t c = 0; c < channels; ++c) o[c] = relu_value(o[c]);
 }
 
-// Layer norm of x + bias (no affine): returns (mean, 1/std) and adds the normalised row to o.
-BSMS_ROW_KERNEL void layer_norm_accumulate_row(const float* x, const float* bias, int64_t channels,
-                                               float eps, float* stats, float* o) {
+struct LayerNormStats {
+  float mean, rstd;  // of the row, and 1/std (biased variance + eps)
+};
+
+// The LayerNorm statistics of the row x + bias (no affine, like at::layer_norm), defined once for
+// every kernel that normalises rows. Always inlined: each caller vectorises it for its own
+// instruction set (a row kernel's clone, or the default target), so the figures stay those of
+// the loops written in place.
+[[gnu::always_inline]] inline LayerNormStats layer_norm_stats(const float* x, const float* bias,
+                                                              int64_t channels, float eps) {
   float sum = 0.0f;
 #pragma omp simd reduction(+ : sum)
   for (int64_t c = 0; c < channels; ++c) sum += x[c] + bias[c];
@@ -168,11 +175,17 @@ BSMS_ROW_KERNEL void layer_norm_accumulate_row(const float* x, const float* bias
     const float d = x[c] + bias[c] - mean;
     var += d * d;
   }
-  const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + eps);
-  stats[0] = mean;
-  stats[1] = rstd;
+  return {mean, 1.0f / std::sqrt(var / static_cast<float>(channels) + eps)};
+}
+
+// Layer norm of x + bias (no affine): returns (mean, 1/std) and adds the normalised row to o.
+BSMS_ROW_KERNEL void layer_norm_accumulate_row(const float* x, const float* bias, int64_t channels,
+                                               float eps, float* stats, float* o) {
+  const LayerNormStats s = layer_norm_stats(x, bias, channels, eps);
+  stats[0] = s.mean;
+  stats[1] = s.rstd;
 #pragma omp simd
-  for (int64_t c = 0; c < channels; ++c) o[c] += (x[c] + bias[c] - mean) * rstd;
+  for (int64_t c = 0; c < channels; ++c) o[c] += (x[c] + bias[c] - s.mean) * s.rstd;
 }
 
 // y = layer_norm(y + bias) in place for rows [r0, r1) (no affine, like at::layer_norm).
@@ -180,21 +193,9 @@ BSMS_ROW_KERNEL void bias_layer_norm_rows(float* y, const float* bias, int64_t r
                                           int64_t channels, float eps) {
   for (int64_t i = r0 * channels; i < r1 * channels; i += channels) {
     float* row = y + i;
+    const LayerNormStats s = layer_norm_stats(row, bias, channels, eps);
 #pragma omp simd
-    for (int64_t c = 0; c < channels; ++c) row[c] += bias[c];
-    float sum = 0.0f;
-#pragma omp simd reduction(+ : sum)
-    for (int64_t c = 0; c < channels; ++c) sum += row[c];
-    const float mean = sum / static_cast<float>(channels);
-    float var = 0.0f;
-#pragma omp simd reduction(+ : var)
-    for (int64_t c = 0; c < channels; ++c) {
-      const float d = row[c] - mean;
-      var += d * d;
-    }
-    const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + eps);
-#pragma omp simd
-    for (int64_t c = 0; c < channels; ++c) row[c] = (row[c] - mean) * rstd;
+    for (int64_t c = 0; c < channels; ++c) row[c] = (row[c] + bias[c] - s.mean) * s.rstd;
   }
 }
 
@@ -850,23 +851,13 @@ torch::Tensor edge_latent_update(const torch::Tensor& latent_in, const torch::Te
       for (int64_t t = 0; t < n; ++t) {
         const int64_t e = order[q0 + t];
         const float* y = ph1 + t * channels;
-        float sum = 0.0f;
-#pragma omp simd reduction(+ : sum)
-        for (int64_t c = 0; c < channels; ++c) sum += y[c] + pb3[c];
-        const float mean = sum / static_cast<float>(channels);
-        float var = 0.0f;
-#pragma omp simd reduction(+ : var)
-        for (int64_t c = 0; c < channels; ++c) {
-          const float d = y[c] + pb3[c] - mean;
-          var += d * d;
-        }
-        const float rstd = 1.0f / std::sqrt(var / static_cast<float>(channels) + kLayerNormEps);
+        const LayerNormStats st = layer_norm_stats(y, pb3, channels, kLayerNormEps);
         float* acc = po + r[e] * channels;
         float* lo = plo + e * channels;
         const float* li = pl + e * channels;
 #pragma omp simd
         for (int64_t c = 0; c < channels; ++c) {
-          const float v = (y[c] + pb3[c] - mean) * rstd;
+          const float v = (y[c] + pb3[c] - st.mean) * st.rstd;
           acc[c] += v;
           lo[c] = li[c] + v;
         }
@@ -883,16 +874,23 @@ torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const 
   return LinearFn::apply(x, weight, bias.defined() ? bias : torch::empty({}), relu);
 }
 
-torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
-                            const std::vector<DenseLayer>& layers, bool layer_norm,
-                            const std::vector<torch::Tensor>& part_rows) {
-  RECORD_FUNCTION("bsms::mlp_inference", std::vector<c10::IValue>());
-  if (parts.empty() || layers.empty())
-    throw InputError("mlp_inference: needs at least one input part and one layer");
+namespace {
+
+// mlp_inference's input parts, checked: x per part (detached), the row indices of each sparse
+// part (undefined for dense ones), the summed channels and the row count.
+struct MlpInputs {
+  std::vector<torch::Tensor> x, at_rows;
+  int64_t channels = 0, rows = 0;
+};
+
+MlpInputs mlp_inputs(const std::vector<torch::Tensor>& parts,
+                     const std::vector<torch::Tensor>& part_rows) {
   if (!part_rows.empty() && (part_rows.size() != parts.size() || part_rows[0].defined()))
     throw InputError("mlp_inference: part_rows needs one entry per part, the first one dense");
-  std::vector<torch::Tensor> x, at_rows(parts.size());
-  int64_t in = 0;
+  MlpInputs in;
+  std::vector<torch::Tensor>& x = in.x;
+  std::vector<torch::Tensor>& at_rows = in.at_rows;
+  at_rows.resize(parts.size());
   for (size_t p = 0; p < parts.size(); ++p) {
     x.push_back(checked_float(parts[p], "x").detach());
     const bool sparse = p < part_rows.size() && part_rows[p].defined();
@@ -903,9 +901,9 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
     } else if (x.back().size(0) != x.front().size(0)) {
       throw InputError("mlp_inference: input parts have different row counts");
     }
-    in += x.back().size(1);
+    in.channels += x.back().size(1);
   }
-  const int64_t rows = x.front().size(0);
+  const int64_t rows = in.rows = x.front().size(0);
   for (const auto& r : at_rows) {
     if (!r.defined() || r.numel() == 0) continue;
     const int64_t* pr = r.data_ptr<int64_t>();
@@ -914,9 +912,18 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
       throw InputError("mlp_inference: sparse part rows must be distinct, ascending and < " +
                        std::to_string(rows));
   }
-  // Per layer: the transposed weight (a view), its bias pointer (or null) and its width.
+  return in;
+}
+
+// Per layer: the transposed weight (a view), its bias pointer (or null) and its width.
+struct MlpWeights {
   std::vector<torch::Tensor> wt, bias;
   std::vector<const float*> pb;
+  int64_t width = 0, widest = 0;  // the output's channels, the widest layer's
+};
+
+MlpWeights mlp_weights(const std::vector<DenseLayer>& layers, int64_t in, bool layer_norm) {
+  MlpWeights m;
   int64_t width = in, widest = 0;
   for (const auto& layer : layers) {
     const auto w = checked_float(layer.weight, "weight").detach();
@@ -925,13 +932,34 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
                        std::to_string(w.size(1)));
     width = w.size(0);
     widest = std::max(widest, width);
-    wt.push_back(gemm_operand(w.t()));
+    m.wt.push_back(gemm_operand(w.t()));
     const bool has_bias = layer.bias.defined() && layer.bias.dim() == 1;
     if (has_bias && layer.bias.numel() != width) throw InputError("linear: bias size mismatch");
-    bias.push_back(has_bias ? layer.bias.detach().contiguous() : torch::Tensor());
-    pb.push_back(has_bias ? bias.back().data_ptr<float>() : nullptr);
+    m.bias.push_back(has_bias ? layer.bias.detach().contiguous() : torch::Tensor());
+    m.pb.push_back(has_bias ? m.bias.back().data_ptr<float>() : nullptr);
   }
-  if (layer_norm && !pb.back()) throw InputError("mlp_inference: layer norm needs the last bias");
+  if (layer_norm && !m.pb.back()) throw InputError("mlp_inference: layer norm needs the last bias");
+  m.width = width;
+  m.widest = widest;
+  return m;
+}
+
+}  // namespace
+
+torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
+                            const std::vector<DenseLayer>& layers, bool layer_norm,
+                            const std::vector<torch::Tensor>& part_rows) {
+  RECORD_FUNCTION("bsms::mlp_inference", std::vector<c10::IValue>());
+  if (parts.empty() || layers.empty())
+    throw InputError("mlp_inference: needs at least one input part and one layer");
+  const MlpInputs inputs = mlp_inputs(parts, part_rows);
+  const std::vector<torch::Tensor>& x = inputs.x;
+  const std::vector<torch::Tensor>& at_rows = inputs.at_rows;
+  const int64_t rows = inputs.rows;
+  const MlpWeights weights = mlp_weights(layers, inputs.channels, layer_norm);
+  const std::vector<torch::Tensor>& wt = weights.wt;
+  const std::vector<const float*>& pb = weights.pb;
+  const int64_t width = weights.width, widest = weights.widest;
   auto y = torch::empty({rows, width}, x.front().options().requires_grad(false));
   const size_t last = layers.size() - 1;
   // Each worker takes a block of rows through every layer (no join between layers); hidden

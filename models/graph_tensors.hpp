@@ -1,7 +1,7 @@
 // Index tensors of (batched) multilevel graphs, precomputed once per mesh for the graph kernels.
-// Built from core's CSR graphs and plain arrays only: the bi-stride MultilevelGraph of preprocess/
-// becomes MultilevelTensors in src/pipeline/graphs/multilevel_tensors.hpp, a proximity hierarchy in
-// models/proximity_multilevel.hpp.
+// Built from core's CSR graphs and plain arrays only: preprocess/'s bi-stride MultilevelGraph and
+// proximity graph (proximity_pooling.hpp) become MultilevelTensors in
+// src/pipeline/graphs/multilevel_tensors.hpp.
 #pragma once
 
 #include <torch/types.h>
@@ -38,9 +38,9 @@ struct EdgeIndex {
 // Non-parametric transition between level k (fine) and k+1 (coarse), docs/design.md "Bi-stride
 // multilevel building" item 6, as a sparse matrix D [N_coarse, N_fine]: D[c, i] = down_weight of
 // the fine edge i -> pooled[c]. Down: v_coarse = D v_fine. Up (unpool, then reversed edges): v_fine
-// = Dᵀ v_coarse. Other hierarchies (models/proximity_multilevel.hpp) may give an up matrix U
-// [N_fine, N_coarse] that is not Dᵀ; they set up_is_down_transpose = false so that gradients use
-// the true adjoints.
+// = Dᵀ v_coarse. Other multilevel graphs (the proximity one, multilevel_tensors.hpp) may give an up
+// matrix U [N_fine, N_coarse] that is not Dᵀ; they set up_is_down_transpose = false so that
+// gradients use the true adjoints.
 struct LevelTransition {
   int64_t fine_nodes = 0;
   int64_t coarse_nodes = 0;

@@ -145,7 +145,7 @@ BsmsGnn::BsmsGnn(GraphModelOptions options) : GraphModel(std::move(options)) {
                      ", expected >= 1");
   }
   const int levels = options_.num_levels;
-  std::vector<int> counts = options_.level_blocks;
+  std::vector<int> counts = options_.mp_per_level_list;
   if (counts.empty()) counts.assign(static_cast<size_t>(levels), options_.mp_per_level);
   if (static_cast<int>(counts.size()) != levels) {
     throw InputError("BSMS-GNN: mp_per_level lists " + std::to_string(counts.size()) +
@@ -222,9 +222,9 @@ torch::Tensor BsmsGnn::forward(const torch::Tensor& nodes,
 
   auto v = run_mlp(*encoder_, nodes);
   std::vector<torch::Tensor> skips;
-  auto pass = [&](std::vector<std::shared_ptr<MessagePassing>>& level_blocks, int k,
+  auto pass = [&](std::vector<std::shared_ptr<MessagePassing>>& mp_per_level_list, int k,
                   torch::Tensor x) {
-    for (auto& block : level_blocks) x = block->forward(x, feats[k], idx[k], mode_);
+    for (auto& block : mp_per_level_list) x = block->forward(x, feats[k], idx[k], mode_);
     return x;
   };
   for (int k = 0; k + 1 < levels; ++k) {

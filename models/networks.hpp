@@ -31,7 +31,7 @@ struct GraphModelOptions {
   int mp_per_level = 1;
   // BSMS: blocks per level, one entry per level (level k's blocks on the way down and up; the
   // last entry: the bottom), overriding mp_per_level; empty = mp_per_level on every level.
-  std::vector<int> level_blocks;
+  std::vector<int> mp_per_level_list;
   // Edge features standardised per channel, one normalizer per level and edge set (MGN: level 0),
   // with statistics accumulated like the node normalizer's (accumulate_edge_statistics), as
   // MeshGraphNets' reference does; off: the raw features.

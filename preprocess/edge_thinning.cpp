@@ -73,27 +73,13 @@ int64_t find_root(std::vector<int64_t>& parent, int64_t x) {
   return x;
 }
 
-}  // namespace
-
-int thinning_cones(int dim) {
-  if (dim < 1 || dim > 3) throw InputError("edge thinning: positions must have 1 to 3 columns");
-  return make_cones(dim).count;
-}
-
-CsrGraph thin_adjacency(const CsrGraph& graph, const RowMatrixXd& positions,
-                        ThinningReport* report) {
+// chosen[e] = 1 where node e's sender keeps edge e: all its edges up to a degree of 2 cones,
+// else the nearest and the farthest neighbour in each cone. Returns the number of thinned nodes.
+int64_t choose_edges(const CsrGraph& graph, const RowMatrixXd& positions, const Cones& cones,
+                     std::vector<uint8_t>& chosen) {
   const int64_t n = graph.num_nodes;
   const int dim = static_cast<int>(positions.cols());
-  if (positions.rows() != n) {
-    throw InputError("edge thinning needs positions for all " + std::to_string(n) + " nodes, got " +
-                     std::to_string(positions.rows()));
-  }
-  thinning_cones(dim);  // checks dim
-  const Cones cones = make_cones(dim);
   const int64_t limit = 2 * static_cast<int64_t>(cones.count);
-
-  // chosen[e]: node e's sender keeps edge e.
-  std::vector<uint8_t> chosen(graph.targets.size(), 0);
   int64_t thinned = 0;
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : thinned) if (n > kParallelNodes)
   for (int64_t i = 0; i < n; ++i) {
@@ -137,8 +123,12 @@ CsrGraph thin_adjacency(const CsrGraph& graph, const RowMatrixXd& positions,
       if (farthest[s] >= 0) chosen[farthest[s]] = 1;
     }
   }
+  return thinned;
+}
 
-  // keep[e]: either end chose the edge.
+// keep[e]: either end chose the edge.
+std::vector<uint8_t> keep_either_end(const CsrGraph& graph, const std::vector<uint8_t>& chosen) {
+  const int64_t n = graph.num_nodes;
   std::vector<uint8_t> keep(graph.targets.size(), 0);
 #pragma omp parallel for schedule(dynamic, 256) if (n > kParallelNodes)
   for (int64_t i = 0; i < n; ++i) {
@@ -146,42 +136,51 @@ CsrGraph thin_adjacency(const CsrGraph& graph, const RowMatrixXd& positions,
       keep[e] = chosen[e] || chosen[reverse_edge(graph, i, graph.targets[e])];
     }
   }
+  return keep;
+}
 
-  // Clusters must not split: put back the shortest removed edges joining parts (Kruskal).
+// Clusters must not split: puts back the shortest removed edges joining parts (Kruskal).
+// Returns the number of directed edges put back.
+int64_t reconnect_clusters(const CsrGraph& graph, const RowMatrixXd& positions,
+                           std::vector<uint8_t>& keep) {
+  const int64_t n = graph.num_nodes;
   int64_t restored = 0;
-  {
-    std::vector<int64_t> parent(n);
-    std::iota(parent.begin(), parent.end(), 0);
-    for (int64_t i = 0; i < n; ++i) {
-      for (int64_t e = graph.offsets[i]; e < graph.offsets[i + 1]; ++e) {
-        const int64_t j = graph.targets[e];
-        if (keep[e] && j > i) {
-          const int64_t a = find_root(parent, i), b = find_root(parent, j);
-          if (a != b) parent[std::max(a, b)] = std::min(a, b);
-        }
-      }
-    }
-    std::vector<std::tuple<double, int64_t, int64_t>> removed;  // (length², i, edge)
-    for (int64_t i = 0; i < n; ++i) {
-      for (int64_t e = graph.offsets[i]; e < graph.offsets[i + 1]; ++e) {
-        const int64_t j = graph.targets[e];
-        if (!keep[e] && j > i && find_root(parent, i) != find_root(parent, j)) {
-          removed.emplace_back(squared_distance(positions, i, j), i, e);
-        }
-      }
-    }
-    std::sort(removed.begin(), removed.end());
-    for (const auto& [length, i, e] : removed) {
+  std::vector<int64_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (int64_t i = 0; i < n; ++i) {
+    for (int64_t e = graph.offsets[i]; e < graph.offsets[i + 1]; ++e) {
       const int64_t j = graph.targets[e];
-      const int64_t a = find_root(parent, i), b = find_root(parent, j);
-      if (a == b) continue;
-      parent[std::max(a, b)] = std::min(a, b);
-      keep[e] = 1;
-      keep[reverse_edge(graph, i, j)] = 1;
-      restored += 2;
+      if (keep[e] && j > i) {
+        const int64_t a = find_root(parent, i), b = find_root(parent, j);
+        if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      }
     }
   }
+  std::vector<std::tuple<double, int64_t, int64_t>> removed;  // (length², i, edge)
+  for (int64_t i = 0; i < n; ++i) {
+    for (int64_t e = graph.offsets[i]; e < graph.offsets[i + 1]; ++e) {
+      const int64_t j = graph.targets[e];
+      if (!keep[e] && j > i && find_root(parent, i) != find_root(parent, j)) {
+        removed.emplace_back(squared_distance(positions, i, j), i, e);
+      }
+    }
+  }
+  std::sort(removed.begin(), removed.end());
+  for (const auto& [length, i, e] : removed) {
+    const int64_t j = graph.targets[e];
+    const int64_t a = find_root(parent, i), b = find_root(parent, j);
+    if (a == b) continue;
+    parent[std::max(a, b)] = std::min(a, b);
+    keep[e] = 1;
+    keep[reverse_edge(graph, i, j)] = 1;
+    restored += 2;
+  }
+  return restored;
+}
 
+// The edges of `graph` with keep[e] set.
+CsrGraph kept_edges(const CsrGraph& graph, const std::vector<uint8_t>& keep) {
+  const int64_t n = graph.num_nodes;
   CsrGraph out;
   out.num_nodes = n;
   out.offsets.assign(n + 1, 0);
@@ -198,6 +197,31 @@ CsrGraph thin_adjacency(const CsrGraph& graph, const RowMatrixXd& positions,
       if (keep[e]) out.targets[at++] = graph.targets[e];
     }
   }
+  return out;
+}
+
+}  // namespace
+
+int thinning_cones(int dim) {
+  if (dim < 1 || dim > 3) throw InputError("edge thinning: positions must have 1 to 3 columns");
+  return make_cones(dim).count;
+}
+
+CsrGraph thin_adjacency(const CsrGraph& graph, const RowMatrixXd& positions,
+                        ThinningReport* report) {
+  const int64_t n = graph.num_nodes;
+  const int dim = static_cast<int>(positions.cols());
+  if (positions.rows() != n) {
+    throw InputError("edge thinning needs positions for all " + std::to_string(n) + " nodes, got " +
+                     std::to_string(positions.rows()));
+  }
+  thinning_cones(dim);  // checks dim
+  const Cones cones = make_cones(dim);
+  std::vector<uint8_t> chosen(graph.targets.size(), 0);
+  const int64_t thinned = choose_edges(graph, positions, cones, chosen);
+  std::vector<uint8_t> keep = keep_either_end(graph, chosen);
+  const int64_t restored = reconnect_clusters(graph, positions, keep);
+  CsrGraph out = kept_edges(graph, keep);
   if (report != nullptr) {
     report->thinned_nodes = thinned;
     report->restored_edges = restored;

@@ -27,7 +27,7 @@ void write_multilevel_graph(const MultilevelGraph& graph, const std::string& pat
     file.set_attr("/", "version", kMultilevelVersion);
     file.set_attr("/", "seeding", to_string(graph.seeding));
     file.set_attr("/", "num_levels", static_cast<int64_t>(graph.num_levels()));
-    // Optional for readers (absent in older files: exact A²).
+    // Readers take an absent attribute as exact A² (the format's default).
     file.set_attr("/", "coarse_edges", std::string(graph.thinned ? "thinned" : "exact"));
     for (int k = 0; k < graph.num_levels(); ++k) {
       const GraphLevel& level = graph.levels[k];

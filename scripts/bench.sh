@@ -20,7 +20,7 @@ run() {
   shift
   local exe=$build_dir/bench/bench_$name
   [[ -x $exe ]] || { echo "bench: $exe not found; build first (make build)" >&2; exit 2; }
-  # The wait policy the bsms executable sets for itself (src/core/runtime.hpp).
+  # The wait policy the bsms executable sets for itself (core/runtime.hpp).
   OMP_NUM_THREADS=$threads OMP_WAIT_POLICY=PASSIVE GOMP_SPINCOUNT=100000 \
     BSMS_BENCH_THREADS=$threads "$exe" \
     --benchmark_out="$root/runs/bench/bench_$name.json" --benchmark_out_format=json \

@@ -71,10 +71,10 @@ generate data_long 202 "$count" --set frames=500
 generate data_hard 303 "$count" --set 'sample.speed=[1.0,1.5]' \
   --set 'sample.material.youngs_modulus=[300.0,600.0]'
 "$bsms" experiment long-rollout "${runs[@]}" --data "$out_dir/data_long" \
-  --hard "$out_dir/data_hard" --out "$out_dir/long_rollout" --threads "$threads"
+  --hard-scenes "$out_dir/data_hard" --out "$out_dir/long_rollout" --threads "$threads"
 stage "4b. the same, every predicted step projected (walls, cells, contact)"
 "$bsms" experiment long-rollout "${runs[@]}" --data "$out_dir/data_long" \
-  --hard "$out_dir/data_hard" --out "$out_dir/long_rollout_projected" --threads "$threads" \
+  --hard-scenes "$out_dir/data_hard" --out "$out_dir/long_rollout_projected" --threads "$threads" \
   --project all
 
 stage "report"

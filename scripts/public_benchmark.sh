@@ -144,7 +144,7 @@ for model in bsms mgn; do
     continue
   fi
   stage "bsms rollout: $model on the test split"
-  "$bsms" rollout "$run" --split test --trajectories "$rollout_trajectories" --threads "$threads"
+  "$bsms" rollout "$run" --split test --max-trajectories "$rollout_trajectories" --threads "$threads"
   echo "$rollout_trajectories" >"$stamp"
 done
 

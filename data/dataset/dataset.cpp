@@ -5,14 +5,34 @@
 #include <cstdio>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <set>
 
+#include "core/config.hpp"
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/tfrecord.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms {
 namespace fs = std::filesystem;
+
+std::optional<mpm::Scene> parse_dataset_scene(const std::string& text, int dim,
+                                              const std::string& source) {
+  const Json json = parse_json_text(text, source);
+  if (json.is_object() && json.empty()) return std::nullopt;
+  if (!json.is_object())
+    throw InputError(source + " must be a JSON object, got " + describe_json(json));
+  const bool family = json.contains("scene");
+  mpm::Scene scene = family ? mpm::parse_base_scene(json["scene"], JsonContext{source, "scene"})
+                            : mpm::parse_scene(json, source);
+  // The walls and symmetries read from it index positions by axis.
+  if (scene.dim != dim)
+    throw InputError(JsonContext{source, family ? "scene.dim" : "dim"}.where() + ": " +
+                     std::to_string(scene.dim) + " is not the dataset's dim " +
+                     std::to_string(dim));
+  return scene;
+}
 
 bool is_static_field(const std::string& name) {
   return name == "cells" || name == "mesh_pos" || name == "node_type" || name == "body_id";
@@ -79,6 +99,7 @@ struct Dataset::Impl {
   double collision_radius = 0.0;
   std::string simulator;
   std::string scene = "{}";
+  std::optional<mpm::Scene> parsed_scene;  // scene, typed; none for "{}"
   // bsms layout: one file, one group per trajectory; public folder: one file per trajectory;
   // public single file: one group per trajectory; MeshGraphNets: one record per trajectory.
   std::unique_ptr<H5File> file;
@@ -284,6 +305,7 @@ Dataset::Dataset(const std::string& location) : impl_(std::make_unique<Impl>()) 
       d.dim = static_cast<int>(d.file->attr_int("/", "dim"));
       d.frame_dt = d.file->attr_double("/", "frame_dt");
       d.scene = d.file->attr_string("/", "scene");
+      d.parsed_scene = parse_dataset_scene(d.scene, d.dim, location + ": attribute 'scene'");
       for (const auto& name : d.file->list("/trajectories"))
         d.groups.push_back("/trajectories/" + name);
       if (d.groups.empty()) throw InputError(location + ": dataset holds no trajectories");
@@ -354,6 +376,9 @@ double Dataset::frame_dt() const {
 }
 const std::string& Dataset::scene() const {
   return impl_->scene;
+}
+const std::optional<mpm::Scene>& Dataset::parsed_scene() const {
+  return impl_->parsed_scene;
 }
 int64_t Dataset::num_trajectories() const {
   switch (impl_->layout) {

@@ -19,8 +19,11 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms {
 
@@ -61,6 +64,14 @@ struct FieldInfo {
 constexpr const char* kDatasetFormat = "bsms-dataset";
 constexpr int64_t kDatasetVersion = 1;
 bool is_static_field(const std::string& name);
+
+// The root attribute "scene" typed, as Dataset::parsed_scene holds it: none for "{}" (public
+// data); a family file (an object with "scene", as `bsms generate` stores it) gives its base scene
+// (mpm::parse_base_scene: the background, boundaries and gravity every draw shares); any other
+// object is read as a scene file (mpm::parse_scene). InputError naming `source` (e.g. "FILE:
+// attribute 'scene'") and the key when the text is malformed or its scene's dim is not `dim`.
+std::optional<mpm::Scene> parse_dataset_scene(const std::string& text, int dim,
+                                              const std::string& source);
 
 // Bounds on the values a dataset may hold, checked where they are read (Dataset::mesh and
 // Dataset::read; docs/hardening.md): |mesh_pos|, |world_pos| (m) and |velocity| (m/s) at most
@@ -146,6 +157,9 @@ class Dataset {
   double collision_radius() const;   // meta.json collision_radius; 0 when null or absent
   std::string simulator() const;     // meta.json "simulator" ("" when absent)
   const std::string& scene() const;  // scene JSON ("{}" for public data)
+  // scene(), read strictly when the dataset opens (parse_dataset_scene; a malformed scene is an
+  // InputError naming the file and the key); none when the data has none (public data).
+  const std::optional<mpm::Scene>& parsed_scene() const;
   int64_t num_trajectories() const;
   int64_t num_frames(int64_t trajectory) const;
   std::vector<FieldInfo> fields() const;  // dynamic fields present in every trajectory

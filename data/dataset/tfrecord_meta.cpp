@@ -67,19 +67,15 @@ DType parse_dtype(std::string s, const std::string& where) {
                    "' (expected float32, float64, int32 or int64)");
 }
 
-}  // namespace
+// The value of a key the meta file must have.
+const Json& required_key(const Json& j, const char* key, const std::string& path) {
+  if (!j.contains(key)) throw InputError(path + ": missing key '" + key + "'");
+  return j.at(key);
+}
 
-Meta parse_meta(const std::string& text, const std::string& path) {
-  // The one bounded JSON reader (core/config.hpp): nesting depth, duplicate keys.
-  const Json j = parse_json_text(text, path);
-  if (!j.is_object()) throw InputError(path + ": expected a JSON object, got " + describe_json(j));
-  auto require = [&](const char* key) -> const Json& {
-    if (!j.contains(key)) throw InputError(path + ": missing key '" + key + "'");
-    return j.at(key);
-  };
-  Meta m;
-  m.path = path;
-  const Json& length = require("trajectory_length");
+// trajectory_length, and the optional dt, collision_radius and simulator.
+void parse_scalars(const Json& j, const std::string& path, Meta& m) {
+  const Json& length = required_key(j, "trajectory_length", path);
   if (!length.is_number_integer() || length.get<int64_t>() < 1 ||
       length.get<int64_t>() > (int64_t{1} << 31))
     throw InputError(path + ": 'trajectory_length' must be a positive integer");
@@ -99,76 +95,76 @@ Meta parse_meta(const std::string& text, const std::string& path) {
     if (!j["simulator"].is_string()) throw InputError(path + ": 'simulator' must be a string");
     m.simulator = j["simulator"].get<std::string>();
   }
-  const Json& names = require("field_names");
-  const Json& features = require("features");
-  // Published datasets have a handful; the bound keeps the checks below linear in practice.
-  constexpr size_t kMaxFields = 256;
-  if (!names.is_array() || names.empty() || names.size() > kMaxFields)
-    throw InputError(path + ": 'field_names' must be a non-empty list of at most " +
-                     std::to_string(kMaxFields) + " strings");
-  if (!features.is_object()) throw InputError(path + ": 'features' must be an object");
-  std::vector<std::string> varlen;
-  for (const Json& name_json : names) {
-    if (!name_json.is_string())
-      throw InputError(path + ": 'field_names' must be a non-empty list of strings");
-    FieldSpec f;
-    f.name = name_json.get<std::string>();
-    const std::string where = path + ": field '" + truncate_for_message(f.name) + "'";
-    if (m.find(f.name)) throw InputError(where + " is listed twice in 'field_names'");
-    if (!features.contains(f.name)) throw InputError(where + " has no entry in 'features'");
-    const Json& spec = features.at(f.name);
-    if (!spec.is_object()) throw InputError(where + ": expected an object");
-    for (const char* key : {"type", "shape", "dtype"})
-      if (!spec.contains(key)) throw InputError(where + ": missing key '" + key + "'");
-    if (!spec["type"].is_string() || !spec["dtype"].is_string())
-      throw InputError(where + ": 'type' and 'dtype' must be strings");
-    const std::string type = spec["type"].get<std::string>();
-    if (type == "static") {
-      f.kind = FieldKind::kStatic;
-    } else if (type == "dynamic") {
-      f.kind = FieldKind::kDynamic;
-    } else if (type == "dynamic_varlen") {
-      f.kind = FieldKind::kDynamicVarlen;
-    } else {
-      throw InputError(where + ": unknown type '" + truncate_for_message(type) +
-                       "' (expected static, dynamic or dynamic_varlen)");
-    }
-    f.dtype = parse_dtype(spec["dtype"].get<std::string>(), where);
-    const Json& shape = spec["shape"];
-    if (!shape.is_array() || shape.empty() || shape.size() > 8)
+}
+
+FieldKind parse_kind(const std::string& type, const std::string& where) {
+  if (type == "static") return FieldKind::kStatic;
+  if (type == "dynamic") return FieldKind::kDynamic;
+  if (type == "dynamic_varlen") return FieldKind::kDynamicVarlen;
+  throw InputError(where + ": unknown type '" + truncate_for_message(type) +
+                   "' (expected static, dynamic or dynamic_varlen)");
+}
+
+// Reads f.shape and checks it against f.kind and the trajectory length.
+void parse_shape(const Json& shape, const std::string& where, int64_t trajectory_length,
+                 FieldSpec& f) {
+  if (!shape.is_array() || shape.empty() || shape.size() > 8)
+    throw InputError(where + ": 'shape' must be a list of 1 to 8 integers");
+  int unknown = 0;
+  int64_t known = 1;
+  for (const Json& e : shape) {
+    if (!e.is_number_integer())
       throw InputError(where + ": 'shape' must be a list of 1 to 8 integers");
-    int unknown = 0;
-    int64_t known = 1;
-    for (const Json& e : shape) {
-      if (!e.is_number_integer())
-        throw InputError(where + ": 'shape' must be a list of 1 to 8 integers");
-      const int64_t v = e.get<int64_t>();
-      if (v == -1) {
-        ++unknown;
-      } else if (v < 1 || v > kMaxElements || known > kMaxElements / v) {
-        throw InputError(where + ": shape entry " + std::to_string(v) +
-                         " out of range (positive, or -1 for the node/cell count)");
-      } else {
-        known *= v;
-      }
-      f.shape.push_back(v);
+    const int64_t v = e.get<int64_t>();
+    if (v == -1) {
+      ++unknown;
+    } else if (v < 1 || v > kMaxElements || known > kMaxElements / v) {
+      throw InputError(where + ": shape entry " + std::to_string(v) +
+                       " out of range (positive, or -1 for the node/cell count)");
+    } else {
+      known *= v;
     }
-    if (unknown > 1)
-      throw InputError(where + ": shape " + shape_string(f.shape) + " has more than one -1");
-    if (f.kind == FieldKind::kStatic && f.shape[0] != 1)
-      throw InputError(where + ": static shape " + shape_string(f.shape) + " must start with 1");
-    if (f.kind != FieldKind::kStatic && f.shape[0] != m.trajectory_length)
-      throw InputError(where + ": dynamic shape " + shape_string(f.shape) +
-                       " must start with trajectory_length " + std::to_string(m.trajectory_length));
-    if (f.kind == FieldKind::kDynamicVarlen) {
-      if (unknown != 1 || f.shape.size() < 2 || f.shape[1] != -1)
-        throw InputError(where + ": dynamic_varlen shape " + shape_string(f.shape) +
-                         " must be [T,-1,...]");
-      varlen.push_back(f.name);
-    }
-    m.fields.push_back(std::move(f));
+    f.shape.push_back(v);
   }
-  // `length_<field>` companions of varlen fields are read with their field, never on their own.
+  if (unknown > 1)
+    throw InputError(where + ": shape " + shape_string(f.shape) + " has more than one -1");
+  if (f.kind == FieldKind::kStatic && f.shape[0] != 1)
+    throw InputError(where + ": static shape " + shape_string(f.shape) + " must start with 1");
+  if (f.kind != FieldKind::kStatic && f.shape[0] != trajectory_length)
+    throw InputError(where + ": dynamic shape " + shape_string(f.shape) +
+                     " must start with trajectory_length " + std::to_string(trajectory_length));
+  if (f.kind == FieldKind::kDynamicVarlen &&
+      (unknown != 1 || f.shape.size() < 2 || f.shape[1] != -1))
+    throw InputError(where + ": dynamic_varlen shape " + shape_string(f.shape) +
+                     " must be [T,-1,...]");
+}
+
+// The field listed by name_json in field_names, described in features; m holds the fields so far.
+FieldSpec parse_field(const Json& name_json, const Json& features, const Meta& m,
+                      const std::string& path) {
+  if (!name_json.is_string())
+    throw InputError(path + ": 'field_names' must be a non-empty list of strings");
+  FieldSpec f;
+  f.name = name_json.get<std::string>();
+  const std::string where = path + ": field '" + truncate_for_message(f.name) + "'";
+  if (m.find(f.name)) throw InputError(where + " is listed twice in 'field_names'");
+  if (!features.contains(f.name)) throw InputError(where + " has no entry in 'features'");
+  const Json& spec = features.at(f.name);
+  if (!spec.is_object()) throw InputError(where + ": expected an object");
+  for (const char* key : {"type", "shape", "dtype"})
+    if (!spec.contains(key)) throw InputError(where + ": missing key '" + key + "'");
+  if (!spec["type"].is_string() || !spec["dtype"].is_string())
+    throw InputError(where + ": 'type' and 'dtype' must be strings");
+  f.kind = parse_kind(spec["type"].get<std::string>(), where);
+  f.dtype = parse_dtype(spec["dtype"].get<std::string>(), where);
+  parse_shape(spec["shape"], where, m.trajectory_length, f);
+  return f;
+}
+
+// `length_<field>` companions of varlen fields are read with their field, never on their own:
+// their dtype goes to the field and they leave the field list.
+void attach_length_companions(const Json& features, const std::vector<std::string>& varlen,
+                              const std::string& path, Meta& m) {
   for (const auto& name : varlen) {
     const std::string companion = "length_" + name;
     DType dtype = DType::kInt32;
@@ -187,6 +183,32 @@ Meta parse_meta(const std::string& text, const std::string& path) {
     for (auto& f : m.fields)
       if (f.name == name) f.length_dtype = dtype;
   }
+}
+
+}  // namespace
+
+Meta parse_meta(const std::string& text, const std::string& path) {
+  // The one bounded JSON reader (core/config.hpp): nesting depth, duplicate keys.
+  const Json j = parse_json_text(text, path);
+  if (!j.is_object()) throw InputError(path + ": expected a JSON object, got " + describe_json(j));
+  Meta m;
+  m.path = path;
+  parse_scalars(j, path, m);
+  const Json& names = required_key(j, "field_names", path);
+  const Json& features = required_key(j, "features", path);
+  // Published datasets have a handful; the bound keeps the checks below linear in practice.
+  constexpr size_t kMaxFields = 256;
+  if (!names.is_array() || names.empty() || names.size() > kMaxFields)
+    throw InputError(path + ": 'field_names' must be a non-empty list of at most " +
+                     std::to_string(kMaxFields) + " strings");
+  if (!features.is_object()) throw InputError(path + ": 'features' must be an object");
+  std::vector<std::string> varlen;
+  for (const Json& name_json : names) {
+    FieldSpec f = parse_field(name_json, features, m, path);
+    if (f.kind == FieldKind::kDynamicVarlen) varlen.push_back(f.name);
+    m.fields.push_back(std::move(f));
+  }
+  attach_length_companions(features, varlen, path, m);
   return m;
 }
 

@@ -201,6 +201,90 @@ void remove_stale_temporaries(const std::string& dir) {
   for (const auto& path : stale) fs::remove(path, ec);
 }
 
+// Whether DIR holds the three split files and no parts: an earlier call finished.
+bool splits_complete(const std::string& dir) {
+  const bool complete = std::all_of(std::begin(kSplitNames), std::end(kSplitNames), [&](auto s) {
+    return fs::exists(fs::path(dir) / (std::string(s) + ".h5"));
+  });
+  return complete && !fs::exists(fs::path(dir) / kPartsDir);
+}
+
+// This shard's trajectories without a part file, ascending; those with one counted as resumed.
+std::vector<int64_t> pending_trajectories(const std::string& dir, const GenerateOptions& options,
+                                          GenerateSummary& summary) {
+  std::vector<int64_t> pending;
+  for (int64_t i = 0; i < options.trajectories; ++i) {
+    if (!options.shard.owns(i)) continue;
+    if (fs::exists(part_path(dir, i)))
+      ++summary.resumed;
+    else
+      pending.push_back(i);
+  }
+  return pending;
+}
+
+// Solves pending[0, limit) on up to options.threads threads (this one among them), each
+// trajectory written to its part file under DIR as soon as it is solved; scratch files under
+// `work`. The first error is rethrown once every thread has stopped. Sets summary.generated,
+// redraws and solver_s.
+void solve_pending(const FamilyConfig& family, const GenerateOptions& options, const Json& settings,
+                   const std::string& dir, const std::string& work,
+                   const std::vector<int64_t>& pending, int64_t limit, GenerateSummary& summary) {
+  std::mutex log_mutex, io_mutex;
+  std::unique_ptr<ProgressBar> bar;
+  if (options.progress && !pending.empty())
+    bar = std::make_unique<ProgressBar>("generate", static_cast<int64_t>(pending.size()));
+  std::atomic<int64_t> next{0}, done{0}, redraws{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr error;
+  double solver_s = 0.0;
+  auto worker = [&] {
+    try {
+      while (!failed) {
+        const int64_t k = next++;
+        if (k >= limit) break;
+        const int64_t index = pending[k];
+        Trajectory t =
+            generate_trajectory(family, options.seed, index, options.max_attempts,
+                                (fs::path(work) / ("traj_" + std::to_string(index))).string(),
+                                [&](const std::string& line) {
+                                  ++redraws;
+                                  const std::lock_guard<std::mutex> lock(log_mutex);
+                                  std::cerr << "generate: " << line << '\n';
+                                });
+        {
+          // Part files are small; serialising them keeps HDF5 safe without a thread-safe build.
+          const std::lock_guard<std::mutex> io(io_mutex);
+          DatasetWriter part(part_path(dir, index), settings.at("config").dump(), family.dim,
+                             family.frame_dt);
+          part.add(t);
+          part.commit();
+        }
+        const std::lock_guard<std::mutex> lock(log_mutex);
+        solver_s += t.solver_wall_s;
+        const int64_t finished = ++done;
+        if (bar) bar->update(finished, std::to_string(t.mesh.num_nodes()) + " nodes");
+        if (options.on_progress)
+          options.on_progress(finished, static_cast<int64_t>(pending.size()));
+      }
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(log_mutex);
+      if (!failed.exchange(true)) error = std::current_exception();
+    }
+  };
+  const int threads =
+      static_cast<int>(std::min<int64_t>(options.threads, std::max<int64_t>(limit, 1)));
+  std::vector<std::thread> pool;
+  for (int w = 1; w < threads; ++w) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  if (bar) bar->finish();
+  summary.generated = done;
+  summary.redraws = redraws;
+  summary.solver_s = solver_s;
+}
+
 }  // namespace
 
 std::string GenerateSummary::summary_line() const {
@@ -269,10 +353,7 @@ GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptio
   claim_dir(dir, settings);
 
   GenerateSummary summary;
-  const bool complete = std::all_of(std::begin(kSplitNames), std::end(kSplitNames), [&](auto s) {
-    return fs::exists(fs::path(dir) / (std::string(s) + ".h5"));
-  });
-  if (complete && !fs::exists(fs::path(dir) / kPartsDir) && options.shard.count == 1) {
+  if (splits_complete(dir) && options.shard.count == 1) {
     remove_stale_temporaries(dir);
     summary.merged = true;
     summary.resumed = options.trajectories;
@@ -284,71 +365,11 @@ GenerateSummary generate_dataset(const FamilyConfig& family, const GenerateOptio
   fs::create_directories(fs::path(dir) / kWorkDir);
   const std::string work = fs::absolute(fs::path(dir) / kWorkDir).string();
 
-  std::vector<int64_t> pending;
-  for (int64_t i = 0; i < options.trajectories; ++i) {
-    if (!options.shard.owns(i)) continue;
-    if (fs::exists(part_path(dir, i)))
-      ++summary.resumed;
-    else
-      pending.push_back(i);
-  }
-
-  std::mutex log_mutex, io_mutex;
-  std::unique_ptr<ProgressBar> bar;
-  if (options.progress && !pending.empty())
-    bar = std::make_unique<ProgressBar>("generate", static_cast<int64_t>(pending.size()));
-  std::atomic<int64_t> next{0}, done{0}, redraws{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  double solver_s = 0.0;
+  const std::vector<int64_t> pending = pending_trajectories(dir, options, summary);
   const int64_t limit = options.stop_after < 0
                             ? static_cast<int64_t>(pending.size())
                             : std::min<int64_t>(options.stop_after, pending.size());
-  auto worker = [&] {
-    try {
-      while (!failed) {
-        const int64_t k = next++;
-        if (k >= limit) break;
-        const int64_t index = pending[k];
-        Trajectory t =
-            generate_trajectory(family, options.seed, index, options.max_attempts,
-                                (fs::path(work) / ("traj_" + std::to_string(index))).string(),
-                                [&](const std::string& line) {
-                                  ++redraws;
-                                  const std::lock_guard<std::mutex> lock(log_mutex);
-                                  std::cerr << "generate: " << line << '\n';
-                                });
-        {
-          // Part files are small; serialising them keeps HDF5 safe without a thread-safe build.
-          const std::lock_guard<std::mutex> io(io_mutex);
-          DatasetWriter part(part_path(dir, index), settings.at("config").dump(), family.dim,
-                             family.frame_dt);
-          part.add(t);
-          part.commit();
-        }
-        const std::lock_guard<std::mutex> lock(log_mutex);
-        solver_s += t.solver_wall_s;
-        const int64_t finished = ++done;
-        if (bar) bar->update(finished, std::to_string(t.mesh.num_nodes()) + " nodes");
-        if (options.on_progress)
-          options.on_progress(finished, static_cast<int64_t>(pending.size()));
-      }
-    } catch (...) {
-      const std::lock_guard<std::mutex> lock(log_mutex);
-      if (!failed.exchange(true)) error = std::current_exception();
-    }
-  };
-  const int threads =
-      static_cast<int>(std::min<int64_t>(options.threads, std::max<int64_t>(limit, 1)));
-  std::vector<std::thread> pool;
-  for (int w = 1; w < threads; ++w) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-  if (bar) bar->finish();
-  summary.generated = done;
-  summary.redraws = redraws;
-  summary.solver_s = solver_s;
+  solve_pending(family, options, settings, dir, work, pending, limit, summary);
 
   const bool stopped = limit < static_cast<int64_t>(pending.size());
   if (!stopped && options.shard.count == 1) {

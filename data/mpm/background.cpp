@@ -249,9 +249,11 @@ int32_t BackgroundMesh<Dim>::locate(const Vec<Dim>& x, int32_t hint,
   return best;
 }
 
+namespace {
+
+// The mesh's nodes and cells as a background mesh without geometry (checks its dimensions).
 template <int Dim>
-BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std::string& context,
-                                    double kernel_width) {
+BackgroundMesh<Dim> copy_mesh(const Mesh& mesh, const std::string& context) {
   if (mesh.dim != Dim || mesh.cell_dim != Dim)
     throw InputError(context + ": background mesh must be " + std::to_string(Dim) +
                      "D simplices, got dim " + std::to_string(mesh.dim) + " with " +
@@ -266,7 +268,12 @@ BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std:
   bg.num_domain_nodes = bg.num_nodes();
   bg.num_domain_cells = bg.num_cells();
   if (bg.cells.empty()) throw InputError(context + ": background mesh has no cells");
+  return bg;
+}
 
+// Sets bg.h and bg.mean_edge from the edge lengths (or the scene's kernel_width, when > 0).
+template <int Dim>
+void choose_kernel_width(BackgroundMesh<Dim>& bg, const std::string& context, double kernel_width) {
   // h: the smallest unit that keeps every vertex of every cell inside the support 1.5 h (with a
   // margin: longest edge / 1.45), and at least the mean edge length. Using the longest edge itself
   // (an outlier ~1.5x the target size on Delaunay meshes) over-smooths the kernel: the cantilever
@@ -294,17 +301,27 @@ BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std:
     bg.h = kernel_width;
   }
   bg.mean_edge = sum_edge / static_cast<double>(edges);
-  compute_geometry(bg, context);
+}
 
-  std::vector<std::pair<std::array<int32_t, Dim>, FaceRecord>> boundary;
-  pair_faces<Dim>(bg, &boundary);
+template <int Dim>
+using BoundaryFaces = std::vector<std::pair<std::array<int32_t, Dim>, FaceRecord>>;
 
-  // Group membership and outward normals of the input boundary.
+// Unit outward normal of each boundary face.
+template <int Dim>
+std::vector<Vec<Dim>> outward_normals(const BackgroundMesh<Dim>& bg,
+                                      const BoundaryFaces<Dim>& boundary) {
   std::vector<Vec<Dim>> face_normal(boundary.size());
   for (size_t f = 0; f < boundary.size(); ++f) {
     const FaceRecord r = boundary[f].second;
     face_normal[f] = -bary_gradient<Dim>(bg.inv_jacobian[r.cell], r.local).normalized();
   }
+  return face_normal;
+}
+
+// The mesh's node groups with the outward normals of the input boundary at their nodes.
+template <int Dim>
+void add_node_groups(BackgroundMesh<Dim>& bg, const Mesh& mesh, const BoundaryFaces<Dim>& boundary,
+                     const std::vector<Vec<Dim>>& face_normal) {
   for (const auto& [name, nodes] : mesh.node_groups) {
     NodeGroup<Dim> group;
     std::vector<char> member(bg.num_nodes(), 0);
@@ -323,54 +340,82 @@ BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std:
     }
     bg.groups[name] = std::move(group);
   }
+}
 
-  if (add_layer) {
-    const int32_t n0 = bg.num_nodes();
-    std::vector<Mat<Dim>> nnt(n0, Mat<Dim>::Zero());
-    std::vector<Vec<Dim>> nsum(n0, Vec<Dim>::Zero());
-    std::vector<int32_t> copy(n0, -1);
-    for (size_t f = 0; f < boundary.size(); ++f)
-      for (int32_t v : boundary[f].first) {
-        nnt[v] += face_normal[f] * face_normal[f].transpose();
-        nsum[v] += face_normal[f];
-        copy[v] = 0;
-      }
-    for (int32_t v = 0; v < n0; ++v) {
-      if (copy[v] < 0) continue;
-      copy[v] = bg.num_nodes();  // ascending originals get ascending copies (prism split rule)
-      bg.points.push_back(bg.points[v] + layer_offset<Dim>(nnt[v], nsum[v], bg.h));
+// Copies every boundary node outwards by layer_offset; returns each node's copy (-1: none).
+template <int Dim>
+std::vector<int32_t> add_layer_nodes(BackgroundMesh<Dim>& bg, const BoundaryFaces<Dim>& boundary,
+                                     const std::vector<Vec<Dim>>& face_normal) {
+  const int32_t n0 = bg.num_nodes();
+  std::vector<Mat<Dim>> nnt(n0, Mat<Dim>::Zero());
+  std::vector<Vec<Dim>> nsum(n0, Vec<Dim>::Zero());
+  std::vector<int32_t> copy(n0, -1);
+  for (size_t f = 0; f < boundary.size(); ++f)
+    for (int32_t v : boundary[f].first) {
+      nnt[v] += face_normal[f] * face_normal[f].transpose();
+      nsum[v] += face_normal[f];
+      copy[v] = 0;
     }
-    for (const auto& face : boundary) {
-      const auto& k = face.first;  // sorted ascending
-      if constexpr (Dim == 1) {
-        bg.cells.push_back({k[0], copy[k[0]]});
-      } else if constexpr (Dim == 2) {
-        const int32_t a = k[0], b = k[1];
-        bg.cells.push_back({a, b, copy[b]});
-        bg.cells.push_back({a, copy[b], copy[a]});
-      } else {
-        // Prism a<b<c under a'<b'<c': each quad's diagonal leaves its lowest node, which makes
-        // the split of a face shared by two prisms agree.
-        const int32_t a = k[0], b = k[1], c = k[2];
-        bg.cells.push_back({a, b, c, copy[c]});
-        bg.cells.push_back({a, b, copy[b], copy[c]});
-        bg.cells.push_back({a, copy[a], copy[b], copy[c]});
-      }
-    }
-    for (auto& [name, group] : bg.groups) {
-      const size_t count = group.nodes.size();
-      for (size_t i = 0; i < count; ++i) {
-        const int32_t v = group.nodes[i];
-        if (copy[v] >= 0) {
-          group.nodes.push_back(copy[v]);
-          group.normals.push_back(group.normals[i]);
-          group.mirrors.push_back(2.0 * bg.points[v] - bg.points[copy[v]]);
-        }
-      }
-    }
-    compute_geometry(bg, context + " (extra outer layer: the boundary is too concave)");
-    pair_faces<Dim>(bg, nullptr);
+  for (int32_t v = 0; v < n0; ++v) {
+    if (copy[v] < 0) continue;
+    copy[v] = bg.num_nodes();  // ascending originals get ascending copies (prism split rule)
+    bg.points.push_back(bg.points[v] + layer_offset<Dim>(nnt[v], nsum[v], bg.h));
   }
+  return copy;
+}
+
+// An extra outer layer of cells over the boundary (each face extruded to its nodes' copies), with
+// the node groups extended to the copies (mirrored through the originals).
+template <int Dim>
+void add_outer_layer(BackgroundMesh<Dim>& bg, const BoundaryFaces<Dim>& boundary,
+                     const std::vector<Vec<Dim>>& face_normal, const std::string& context) {
+  const std::vector<int32_t> copy = add_layer_nodes<Dim>(bg, boundary, face_normal);
+  for (const auto& face : boundary) {
+    const auto& k = face.first;  // sorted ascending
+    if constexpr (Dim == 1) {
+      bg.cells.push_back({k[0], copy[k[0]]});
+    } else if constexpr (Dim == 2) {
+      const int32_t a = k[0], b = k[1];
+      bg.cells.push_back({a, b, copy[b]});
+      bg.cells.push_back({a, copy[b], copy[a]});
+    } else {
+      // Prism a<b<c under a'<b'<c': each quad's diagonal leaves its lowest node, which makes
+      // the split of a face shared by two prisms agree.
+      const int32_t a = k[0], b = k[1], c = k[2];
+      bg.cells.push_back({a, b, c, copy[c]});
+      bg.cells.push_back({a, b, copy[b], copy[c]});
+      bg.cells.push_back({a, copy[a], copy[b], copy[c]});
+    }
+  }
+  for (auto& [name, group] : bg.groups) {
+    const size_t count = group.nodes.size();
+    for (size_t i = 0; i < count; ++i) {
+      const int32_t v = group.nodes[i];
+      if (copy[v] >= 0) {
+        group.nodes.push_back(copy[v]);
+        group.normals.push_back(group.normals[i]);
+        group.mirrors.push_back(2.0 * bg.points[v] - bg.points[copy[v]]);
+      }
+    }
+  }
+  compute_geometry(bg, context + " (extra outer layer: the boundary is too concave)");
+  pair_faces<Dim>(bg, nullptr);
+}
+
+}  // namespace
+
+template <int Dim>
+BackgroundMesh<Dim> make_background(const Mesh& mesh, bool add_layer, const std::string& context,
+                                    double kernel_width) {
+  BackgroundMesh<Dim> bg = copy_mesh<Dim>(mesh, context);
+  choose_kernel_width(bg, context, kernel_width);
+  compute_geometry(bg, context);
+
+  BoundaryFaces<Dim> boundary;
+  pair_faces<Dim>(bg, &boundary);
+  const std::vector<Vec<Dim>> face_normal = outward_normals<Dim>(bg, boundary);
+  add_node_groups<Dim>(bg, mesh, boundary, face_normal);
+  if (add_layer) add_outer_layer<Dim>(bg, boundary, face_normal, context);
   build_stencils(bg);
   build_hash(bg);
   return bg;

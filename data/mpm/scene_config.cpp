@@ -54,6 +54,12 @@ Material parse_material(const Json& j, const JsonContext& ctx) {
   return m;
 }
 
+// Resolves a path relative to the scene file's folder.
+std::string scene_relative(const std::string& path, const std::string& base_dir) {
+  if (!std::filesystem::path(path).is_relative()) return path;
+  return (std::filesystem::path(base_dir) / path).string();
+}
+
 ShapeSpec parse_shape(const Json& j, const JsonContext& ctx, int dim, const std::string& base_dir) {
   JsonObjectReader r(j, ctx);
   ShapeSpec s;
@@ -80,9 +86,7 @@ ShapeSpec parse_shape(const Json& j, const JsonContext& ctx, int dim, const std:
     }
     require(std::abs(area2) > 0.0, r.context("points"), "a polygon of non-zero area");
   } else if (s.type == "mesh") {
-    s.path = r.get<std::string>("path");
-    if (std::filesystem::path(s.path).is_relative())
-      s.path = (std::filesystem::path(base_dir) / s.path).string();
+    s.path = scene_relative(r.get<std::string>("path"), base_dir);
   } else {
     throw InputError(r.context("type").where() + ": unknown shape '" + s.type + "' for dim " +
                      std::to_string(dim) + " (allowed: box, " +
@@ -121,157 +125,204 @@ VelocitySpec parse_velocity(const Json& j, const JsonContext& ctx, int dim) {
   return v;
 }
 
-}  // namespace
+// The "box" keys of a background (all but type and the keys shared by every type).
+void parse_box_background(JsonObjectReader& b, int dim, BackgroundSpec& bg) {
+  bg.min = read_vector(b, "min", dim);
+  bg.max = read_vector(b, "max", dim);
+  for (int a = 0; a < dim; ++a)
+    require(bg.max[a] > bg.min[a], b.context("max"), "greater than min in every axis");
+  bg.element_size = b.get<double>("element_size");
+  require(bg.element_size > 0.0, b.context("element_size"), "> 0 (m)");
+  bg.structured = b.opt<bool>("structured", false);
+  bg.rotation_deg = b.opt<double>("rotation_deg", 0.0);
+  bg.rotation_center = opt_vector(b, "rotation_center", dim);
+  bg.embedded_lines = b.opt<std::vector<std::vector<double>>>("embedded_lines", {});
+  for (const auto& line : bg.embedded_lines)
+    require(dim == 2 && line.size() == 4, b.context("embedded_lines"),
+            "a list of [x0, y0, x1, y1] (2D)");
+  require(bg.embedded_lines.empty() || !bg.structured, b.context("embedded_lines"),
+          "empty for a structured background");
+}
 
-Scene parse_scene(const Json& json, const std::string& file) {
+BackgroundSpec parse_background(const Json& j, const JsonContext& ctx, int dim,
+                                const std::string& base_dir) {
+  JsonObjectReader b(j, ctx);
+  BackgroundSpec bg;
+  bg.type = b.get<std::string>("type");
+  if (bg.type == "mesh") {
+    bg.path = b.get<std::string>("path");
+    require(!bg.path.empty(), b.context("path"), "a mesh file path");
+    bg.path = scene_relative(bg.path, base_dir);
+  } else if (bg.type == "box") {
+    parse_box_background(b, dim, bg);
+  } else if (bg.type == "ball") {
+    bg.center = read_vector(b, "center", dim);
+    bg.radius = b.get<double>("radius");
+    require(bg.radius > 0.0, b.context("radius"), "> 0 (m)");
+    bg.element_size = b.get<double>("element_size");
+    require(bg.element_size > 0.0, b.context("element_size"), "> 0 (m)");
+  } else {
+    throw InputError(b.context("type").where() + ": unknown background '" + bg.type +
+                     "' (allowed: box, ball, mesh)");
+  }
+  bg.extra_layer = b.opt<bool>("extra_layer", true);
+  bg.kernel_width = b.opt<double>("kernel_width", 0.0);
+  require(std::isfinite(bg.kernel_width) && bg.kernel_width >= 0.0, b.context("kernel_width"),
+          ">= 0 (m; 0: from the mesh)");
+  b.finish();
+  return bg;
+}
+
+// Body i of the "bodies" list.
+BodySpec parse_body(const Json& j, const JsonContext& ctx, size_t i, int dim,
+                    const std::string& base_dir) {
+  JsonObjectReader b(j, ctx);
+  BodySpec body;
+  body.name = b.opt<std::string>("name", "body" + std::to_string(i));
+  body.shape = parse_shape(b.raw("shape"), b.context("shape"), dim, base_dir);
+  body.spacing =
+      body.shape.type == "mesh" ? b.opt<double>("spacing", 1.0) : b.get<double>("spacing");
+  require(body.spacing > 0.0, b.context("spacing"), "> 0 (m)");
+  body.structured = b.opt<bool>("structured", true);
+  body.sampling = b.opt<std::string>("sampling", "nodes");
+  require(body.sampling == "nodes" || (body.sampling == "cell_centres" && body.shape.type == "box"),
+          b.context("sampling"), "nodes, or cell_centres for a box shape");
+  body.material = parse_material(b.raw("material"), b.context("material"));
+  if (b.has("velocity")) {
+    body.velocity = parse_velocity(b.raw("velocity"), b.context("velocity"), dim);
+  } else {
+    b.opt<Json>("velocity", Json());
+    body.velocity.value.assign(dim, 0.0);
+  }
+  body.initial_stretch = b.opt<double>("initial_stretch", 1.0);
+  require(body.initial_stretch > 0.0, b.context("initial_stretch"), "> 0");
+  b.finish();
+  return body;
+}
+
+std::vector<BodySpec> parse_bodies(JsonObjectReader& r, int dim, const std::string& base_dir) {
+  const Json& bodies = r.raw("bodies");
+  if (!bodies.is_array() || bodies.empty())
+    throw InputError(r.context("bodies").where() + " must be a non-empty list");
+  std::vector<BodySpec> out;
+  for (size_t i = 0; i < bodies.size(); ++i)
+    out.push_back(
+        parse_body(bodies[i], r.context("bodies").child(std::to_string(i)), i, dim, base_dir));
+  return out;
+}
+
+// A boundary: a background node group, or a half-space given by a point and an outward normal.
+BoundarySpec parse_boundary(const Json& j, const JsonContext& ctx, int dim) {
+  JsonObjectReader b(j, ctx);
+  BoundarySpec s;
+  s.type = parse_boundary_type(b.get<std::string>("type"), b.context("type").where());
+  if (b.has("group")) {
+    s.group = b.get<std::string>("group");
+    b.opt<Json>("point", Json());
+    b.opt<Json>("normal", Json());
+  } else {
+    b.opt<Json>("group", Json());
+    s.point = read_vector(b, "point", dim);
+    s.normal = read_vector(b, "normal", dim);
+    double len = 0.0;
+    for (double x : s.normal) len += x * x;
+    require(len > 0.0, b.context("normal"), "a non-zero vector");
+  }
+  b.finish();
+  return s;
+}
+
+std::vector<BoundarySpec> parse_boundaries(JsonObjectReader& r, int dim) {
+  std::vector<BoundarySpec> out;
+  if (!r.has("boundaries")) {
+    r.opt<Json>("boundaries", Json());
+    return out;
+  }
+  const Json& list = r.raw("boundaries");
+  if (!list.is_array()) throw InputError(r.context("boundaries").where() + " must be a list");
+  for (size_t i = 0; i < list.size(); ++i)
+    out.push_back(parse_boundary(list[i], r.context("boundaries").child(std::to_string(i)), dim));
+  return out;
+}
+
+// The solver settings, checked against the background they run on.
+SolverSpec parse_solver(const Json& j, const JsonContext& ctx, const BackgroundSpec& background,
+                        const std::string& file) {
+  JsonObjectReader s(j, ctx);
+  SolverSpec sv;
+  sv.kernel = parse_kernel(s.opt<std::string>("kernel", "umls"), s.context("kernel").where());
+  sv.transfer =
+      parse_transfer(s.opt<std::string>("transfer", "apic"), s.context("transfer").where());
+  sv.cfl = s.opt<double>("cfl", 0.3);
+  require(sv.cfl > 0.0 && sv.cfl <= 1.0, s.context("cfl"), "in (0, 1]");
+  sv.dt = s.opt<double>("dt", 0.0);
+  require(sv.dt >= 0.0, s.context("dt"), ">= 0 (s; 0 = CFL)");
+  sv.flip_ratio = s.opt<double>("flip_ratio", 1.0);
+  require(sv.flip_ratio >= 0.0 && sv.flip_ratio <= 1.0, s.context("flip_ratio"), "in [0, 1]");
+  sv.end_time = s.get<double>("end_time");
+  require(sv.end_time > 0.0, s.context("end_time"), "> 0 (s)");
+  s.finish();
+  if (sv.kernel == KernelType::kBspline && background.type != "box")
+    throw InputError(file + ": key 'solver.kernel': bspline needs a box background");
+  if (sv.kernel == KernelType::kBspline && background.rotation_deg != 0.0)
+    throw InputError(file + ": key 'solver.kernel': bspline needs an unrotated box background");
+  if (sv.kernel == KernelType::kBspline && background.kernel_width > 0.0)
+    throw InputError(file + ": key 'background.kernel_width': bspline's lattice spacing is " +
+                     "background.element_size; kernel_width is for simplicial backgrounds");
+  return sv;
+}
+
+// The optional "output" object (defaults when absent).
+OutputSpec parse_output(JsonObjectReader& r) {
+  OutputSpec out;
+  if (!r.has("output")) {
+    r.opt<Json>("output", Json());
+    return out;
+  }
+  JsonObjectReader o(r.raw("output"), r.context("output"));
+  out.frames = o.opt<int>("frames", 101);
+  require(out.frames >= 2, o.context("frames"), ">= 2");
+  out.fields = o.opt<std::vector<std::string>>("fields", out.fields);
+  for (const auto& f : out.fields)
+    require(f == "velocity" || f == "stress" || f == "plastic_strain", o.context("fields"),
+            "a list of velocity, stress, plastic_strain (got '" + f + "')");
+  o.finish();
+  return out;
+}
+
+// A scene; with `base`, a family's base scene (parse_base_scene). One reader for both, so that
+// every key has one default.
+Scene parse_scene_object(const Json& json, const JsonContext& where, bool base) {
+  const std::string& file = where.file;
   Scene scene;
   scene.file = file;
   scene.source = json;
   const std::string base_dir = std::filesystem::path(file).parent_path().string();
-  JsonObjectReader r(json, JsonContext{file, ""});
+  JsonObjectReader r(json, where);
   scene.dim = r.get<int>("dim");
   require(scene.dim == 2 || scene.dim == 3, r.context("dim"), "2 or 3");
   const int dim = scene.dim;
-
-  {
-    JsonObjectReader b(r.raw("background"), r.context("background"));
-    BackgroundSpec& bg = scene.background;
-    bg.type = b.get<std::string>("type");
-    if (bg.type == "mesh") {
-      bg.path = b.get<std::string>("path");
-      require(!bg.path.empty(), b.context("path"), "a mesh file path");
-      if (std::filesystem::path(bg.path).is_relative())
-        bg.path = (std::filesystem::path(base_dir) / bg.path).string();
-    } else if (bg.type == "box") {
-      bg.min = read_vector(b, "min", dim);
-      bg.max = read_vector(b, "max", dim);
-      for (int a = 0; a < dim; ++a)
-        require(bg.max[a] > bg.min[a], b.context("max"), "greater than min in every axis");
-      bg.element_size = b.get<double>("element_size");
-      require(bg.element_size > 0.0, b.context("element_size"), "> 0 (m)");
-      bg.structured = b.opt<bool>("structured", false);
-      bg.rotation_deg = b.opt<double>("rotation_deg", 0.0);
-      bg.rotation_center = opt_vector(b, "rotation_center", dim);
-      bg.embedded_lines = b.opt<std::vector<std::vector<double>>>("embedded_lines", {});
-      for (const auto& line : bg.embedded_lines)
-        require(dim == 2 && line.size() == 4, b.context("embedded_lines"),
-                "a list of [x0, y0, x1, y1] (2D)");
-      require(bg.embedded_lines.empty() || !bg.structured, b.context("embedded_lines"),
-              "empty for a structured background");
-    } else if (bg.type == "ball") {
-      bg.center = read_vector(b, "center", dim);
-      bg.radius = b.get<double>("radius");
-      require(bg.radius > 0.0, b.context("radius"), "> 0 (m)");
-      bg.element_size = b.get<double>("element_size");
-      require(bg.element_size > 0.0, b.context("element_size"), "> 0 (m)");
-    } else {
-      throw InputError(b.context("type").where() + ": unknown background '" + bg.type +
-                       "' (allowed: box, ball, mesh)");
-    }
-    bg.extra_layer = b.opt<bool>("extra_layer", true);
-    bg.kernel_width = b.opt<double>("kernel_width", 0.0);
-    require(std::isfinite(bg.kernel_width) && bg.kernel_width >= 0.0, b.context("kernel_width"),
-            ">= 0 (m; 0: from the mesh)");
-    b.finish();
-  }
-
-  const Json& bodies = r.raw("bodies");
-  if (!bodies.is_array() || bodies.empty())
-    throw InputError(r.context("bodies").where() + " must be a non-empty list");
-  for (size_t i = 0; i < bodies.size(); ++i) {
-    const JsonContext ctx = r.context("bodies").child(std::to_string(i));
-    JsonObjectReader b(bodies[i], ctx);
-    BodySpec body;
-    body.name = b.opt<std::string>("name", "body" + std::to_string(i));
-    body.shape = parse_shape(b.raw("shape"), b.context("shape"), dim, base_dir);
-    body.spacing =
-        body.shape.type == "mesh" ? b.opt<double>("spacing", 1.0) : b.get<double>("spacing");
-    require(body.spacing > 0.0, b.context("spacing"), "> 0 (m)");
-    body.structured = b.opt<bool>("structured", true);
-    body.sampling = b.opt<std::string>("sampling", "nodes");
-    require(
-        body.sampling == "nodes" || (body.sampling == "cell_centres" && body.shape.type == "box"),
-        b.context("sampling"), "nodes, or cell_centres for a box shape");
-    body.material = parse_material(b.raw("material"), b.context("material"));
-    if (b.has("velocity")) {
-      body.velocity = parse_velocity(b.raw("velocity"), b.context("velocity"), dim);
-    } else {
-      b.opt<Json>("velocity", Json());
-      body.velocity.value.assign(dim, 0.0);
-    }
-    body.initial_stretch = b.opt<double>("initial_stretch", 1.0);
-    require(body.initial_stretch > 0.0, b.context("initial_stretch"), "> 0");
-    b.finish();
-    scene.bodies.push_back(body);
-  }
-
-  if (r.has("boundaries")) {
-    const Json& list = r.raw("boundaries");
-    if (!list.is_array()) throw InputError(r.context("boundaries").where() + " must be a list");
-    for (size_t i = 0; i < list.size(); ++i) {
-      JsonObjectReader b(list[i], r.context("boundaries").child(std::to_string(i)));
-      BoundarySpec s;
-      s.type = parse_boundary_type(b.get<std::string>("type"), b.context("type").where());
-      if (b.has("group")) {
-        s.group = b.get<std::string>("group");
-        b.opt<Json>("point", Json());
-        b.opt<Json>("normal", Json());
-      } else {
-        b.opt<Json>("group", Json());
-        s.point = read_vector(b, "point", dim);
-        s.normal = read_vector(b, "normal", dim);
-        double len = 0.0;
-        for (double x : s.normal) len += x * x;
-        require(len > 0.0, b.context("normal"), "a non-zero vector");
-      }
-      b.finish();
-      scene.boundaries.push_back(s);
-    }
-  } else {
-    r.opt<Json>("boundaries", Json());
-  }
-
+  scene.background = parse_background(r.raw("background"), r.context("background"), dim, base_dir);
+  // A family's draws bring their own bodies (FamilyBase::finish): its base scene may have none.
+  if (!base || (r.has("bodies") && r.raw("bodies") != Json::array()))
+    scene.bodies = parse_bodies(r, dim, base_dir);
+  scene.boundaries = parse_boundaries(r, dim);
   scene.gravity = r.has("gravity") ? read_vector(r, "gravity", dim) : std::vector<double>(dim, 0.0);
   if (!r.has("gravity")) r.opt<Json>("gravity", Json());
-
-  {
-    JsonObjectReader s(r.raw("solver"), r.context("solver"));
-    SolverSpec& sv = scene.solver;
-    sv.kernel = parse_kernel(s.opt<std::string>("kernel", "umls"), s.context("kernel").where());
-    sv.transfer =
-        parse_transfer(s.opt<std::string>("transfer", "apic"), s.context("transfer").where());
-    sv.cfl = s.opt<double>("cfl", 0.3);
-    require(sv.cfl > 0.0 && sv.cfl <= 1.0, s.context("cfl"), "in (0, 1]");
-    sv.dt = s.opt<double>("dt", 0.0);
-    require(sv.dt >= 0.0, s.context("dt"), ">= 0 (s; 0 = CFL)");
-    sv.flip_ratio = s.opt<double>("flip_ratio", 1.0);
-    require(sv.flip_ratio >= 0.0 && sv.flip_ratio <= 1.0, s.context("flip_ratio"), "in [0, 1]");
-    sv.end_time = s.get<double>("end_time");
-    require(sv.end_time > 0.0, s.context("end_time"), "> 0 (s)");
-    s.finish();
-    if (sv.kernel == KernelType::kBspline && scene.background.type != "box")
-      throw InputError(file + ": key 'solver.kernel': bspline needs a box background");
-    if (sv.kernel == KernelType::kBspline && scene.background.rotation_deg != 0.0)
-      throw InputError(file + ": key 'solver.kernel': bspline needs an unrotated box background");
-    if (sv.kernel == KernelType::kBspline && scene.background.kernel_width > 0.0)
-      throw InputError(file + ": key 'background.kernel_width': bspline's lattice spacing is " +
-                       "background.element_size; kernel_width is for simplicial backgrounds");
-  }
-
-  if (r.has("output")) {
-    JsonObjectReader o(r.raw("output"), r.context("output"));
-    scene.output.frames = o.opt<int>("frames", 101);
-    require(scene.output.frames >= 2, o.context("frames"), ">= 2");
-    scene.output.fields = o.opt<std::vector<std::string>>("fields", scene.output.fields);
-    for (const auto& f : scene.output.fields)
-      require(f == "velocity" || f == "stress" || f == "plastic_strain", o.context("fields"),
-              "a list of velocity, stress, plastic_strain (got '" + f + "')");
-    o.finish();
-  } else {
-    r.opt<Json>("output", Json());
-  }
+  scene.solver = parse_solver(r.raw("solver"), r.context("solver"), scene.background, file);
+  scene.output = parse_output(r);
   r.finish();
   return scene;
+}
+
+}  // namespace
+
+Scene parse_scene(const Json& json, const std::string& file) {
+  return parse_scene_object(json, JsonContext{file, ""}, false);
+}
+
+Scene parse_base_scene(const Json& json, const JsonContext& where) {
+  return parse_scene_object(json, where, true);
 }
 
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides) {

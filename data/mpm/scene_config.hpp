@@ -107,6 +107,10 @@ struct Scene {
 };
 
 Scene parse_scene(const Json& json, const std::string& file);
+// A family's base scene (the "scene" of configs/families/*.json, which every draw completes): read
+// as parse_scene reads a scene, except that "bodies" may be absent or empty (the draws bring them;
+// absent reads as none). `where`: the file and the scene's key path in it, for messages.
+Scene parse_base_scene(const Json& json, const JsonContext& where);
 // Loads a scene file and applies `--set key.path=value` overrides before parsing.
 Scene load_scene(const std::string& path, const std::vector<std::string>& overrides = {});
 

@@ -55,7 +55,17 @@ void Particles<Dim>::resize(int32_t n) {
 namespace {
 
 // Signed-mass share ρ = m_i / Σ_p |w_ip| m_p below which a node starts paying its momentum back
-// by |w| instead of w (see MpmSolver::step): λ = clamp(1 − ρ / κ, 0, 1).
+// by |w| instead of w: λ = clamp(1 − ρ / κ, 0, 1).
+// MLS weights can be negative at the far edge of a particle's support, so the signed mass
+// m_i = Σ w m_p of a node can be tiny, zero or negative while its momentum and force are
+// not. Dropping such a node loses them (measured: the rotating square's momenta jumped
+// from 1e-16 to 1e-7 / 1e-6 at the first such node, step 13943), and dividing by a
+// cancelled mass blows its velocity up. Instead the node pays its momentum q_i = p_i + dt
+// f_i back with the weights w' = w + λ (|w| − w), i.e. v_i = q_i / Σ w' m_p: with λ = 0
+// this is APIC itself, with λ = 1 particle p gets the share |w| m_p / Σ|w| m (APIC again
+// when all weights share a sign). Any λ conserves linear and angular momentum, APIC terms
+// included; λ grows continuously as ρ = m_i / Σ|w| m falls below κ, so no rounding
+// difference flips a discrete choice.
 constexpr double kSharedMassFraction = 0.05;
 
 // First failure found by any thread: the lowest particle index wins (deterministic message).
@@ -87,6 +97,24 @@ std::string format_vec(const Vec<Dim>& x) {
 template <int Dim>
 bool all_finite(const Vec<Dim>& x) {
   return x.allFinite();
+}
+
+// Why a particle's kernel evaluation failed (n < 0, as returned by TransferKernel), at position xp.
+template <int Dim>
+std::string kernel_failure(int n, const Vec<Dim>& xp) {
+  return n == kOutsideMesh
+             ? "left the background mesh at " + format_vec<Dim>(xp)
+             : "degenerate kernel samples (singular MLS moment matrix) at " + format_vec<Dim>(xp);
+}
+
+// Mirror image of velocity v for a ghost node of wall con (see NodeConstraint).
+template <int Dim>
+Vec<Dim> reflect_at_wall(const NodeConstraint<Dim>& con, const Vec<Dim>& v) {
+  const double nn = con.normal.squaredNorm();
+  if (con.type == BoundaryType::kFixed || nn == 0.0) return -v;
+  const double vdot = v.dot(con.normal);
+  if (con.type == BoundaryType::kSlip && vdot <= 0.0) return v;
+  return v - 2.0 * vdot / nn * con.normal;
 }
 
 }  // namespace
@@ -216,12 +244,17 @@ void MpmSolver<Dim>::advance_to(double t) {
 
 template <int Dim>
 void MpmSolver<Dim>::step(double dt) {
-  const int32_t P = particles_.size();
-  const int32_t N = bg_.num_nodes();
-  const bool apic = settings_.transfer == Transfer::kApic;
-  Failure failure;
+  locate_particles();
+  particles_to_grid(dt);
+  grid_to_particles(dt);
+  time_ += dt;
+  ++steps_;
+}
 
-  // 1. Locate particles and size their kernel slots (upper bound: the cell's stencil).
+template <int Dim>
+void MpmSolver<Dim>::locate_particles() {
+  const int32_t P = particles_.size();
+  Failure failure;
   const bool simplicial = !bg_.grid;
   const bool per_cell =
       kernel_.type() == KernelType::kUmls || kernel_.type() == KernelType::kUmlsNoEta;
@@ -243,8 +276,87 @@ void MpmSolver<Dim>::step(double dt) {
   if (failure.failed()) fail(failure.particle, failure.cause);
   for (int32_t p = 0; p < P; ++p) entry_offsets_[p + 1] += entry_offsets_[p];
   if (static_cast<int64_t>(entries_.size()) < entry_offsets_[P]) entries_.resize(entry_offsets_[P]);
+}
 
-  // 2. Kernel evaluation and P2G into per-thread buffers (no races), then a reduction over nodes.
+template <int Dim>
+Mat<Dim> MpmSolver<Dim>::apic_affine(int32_t p, const KernelEntry<Dim>* e, int n) const {
+  const Vec<Dim>& xp = particles_.x[p];
+  Mat<Dim> D = Mat<Dim>::Zero();
+  for (int i = 0; i < n; ++i) {
+    const Vec<Dim> r = bg_.points[e[i].node] - xp;
+    D.noalias() += e[i].w * r * r.transpose();
+  }
+  // D is invertible for UMLS and B-splines; linear FEM makes it singular on cell edges, where the
+  // affine term is dropped.
+  Mat<Dim> D_inv;
+  bool invertible;
+  D.computeInverseWithCheck(D_inv, invertible, 1e-14 * D.trace() * D.trace());
+  if (invertible) return particles_.B[p] * D_inv;
+  return Mat<Dim>::Zero();
+}
+
+template <int Dim>
+void MpmSolver<Dim>::constrain_node(int32_t i, Vec<Dim>& vn) const {
+  for (int32_t c = constraint_offsets_[i]; c < constraint_offsets_[i + 1]; ++c) {
+    const NodeConstraint<Dim>& con = constraints_[c];
+    const double nn = con.normal.squaredNorm();
+    if (con.type == BoundaryType::kFixed || nn == 0.0) {
+      vn.setZero();
+    } else {
+      const double vdot = vn.dot(con.normal);
+      if (con.type == BoundaryType::kRoller || vdot > 0.0) vn -= vdot / nn * con.normal;
+    }
+  }
+}
+
+template <int Dim>
+bool MpmSolver<Dim>::update_node(int32_t i, const double* acc, double dt) {
+  grid_mass_[i] = acc[0];
+  if (!(acc[1] > 0.0)) {  // no particle reaches the node
+    grid_v_[i].setZero();
+    grid_v_new_[i].setZero();
+    grid_share_[i] = 0.0;
+    return false;
+  }
+  // A node whose signed mass is cancelled pays its momentum back by w + λ (|w| − w) (see
+  // kSharedMassFraction).
+  const double lambda = std::clamp(1.0 - acc[0] / (kSharedMassFraction * acc[1]), 0.0, 1.0);
+  grid_share_[i] = lambda;
+  Vec<Dim> v, f;
+  const double m_eff = acc[0] + lambda * (acc[1] - acc[0]);
+  for (int a = 0; a < Dim; ++a) {
+    v[a] = acc[2 + a] / m_eff;
+    f[a] = acc[2 + Dim + a];
+  }
+  Vec<Dim> vn = v + dt / m_eff * f;
+  constrain_node(i, vn);
+  grid_v_[i] = v;
+  grid_v_new_[i] = vn;
+  return lambda > 0.0;
+}
+
+template <int Dim>
+void MpmSolver<Dim>::mirror_ghost(size_t g) {
+  const NodeConstraint<Dim>& con = ghosts_[g];
+  Vec<Dim> vm = Vec<Dim>::Zero(), vo = Vec<Dim>::Zero();
+  for (int k = 0; k < con.mirror_count; ++k) {
+    // A shared node's value is a momentum share rather than a velocity: it counts 1 − λ.
+    const double w = con.mirror_weights[k] * (1.0 - grid_share_[con.mirror_nodes[k]]);
+    vm += w * grid_v_new_[con.mirror_nodes[k]];
+    vo += w * grid_v_[con.mirror_nodes[k]];
+  }
+  ghost_v_[g] = reflect_at_wall<Dim>(con, vo);
+  ghost_v_new_[g] = reflect_at_wall<Dim>(con, vm);
+}
+
+template <int Dim>
+void MpmSolver<Dim>::particles_to_grid(double dt) {
+  const int32_t P = particles_.size();
+  const int32_t N = bg_.num_nodes();
+  const bool apic = settings_.transfer == Transfer::kApic;
+  const bool simplicial = !bg_.grid;
+  Failure failure;
+  // Kernel evaluation and P2G into per-thread buffers (no races), then a reduction over nodes.
   constexpr int kStride = 2 + 2 * Dim;  // mass, Σ |w| m_p, momentum, force
   const int threads = omp_get_max_threads();
   int64_t shared_nodes = 0;
@@ -262,10 +374,7 @@ void MpmSolver<Dim>::step(double dt) {
       const int n = simplicial ? kernel_.evaluate_in_cell(xp, cell_[p], bary_[p], e)
                                : kernel_.evaluate(xp, cell_[p], e);
       if (n < 0) {
-        failure.record(p, n == kOutsideMesh
-                              ? "left the background mesh at " + format_vec<Dim>(xp)
-                              : "degenerate kernel samples (singular MLS moment matrix) at " +
-                                    format_vec<Dim>(xp));
+        failure.record(p, kernel_failure<Dim>(n, xp));
         entry_counts_[p] = 0;
         continue;
       }
@@ -274,19 +383,7 @@ void MpmSolver<Dim>::step(double dt) {
       const Mat<Dim> stress_volume =
           sigma_[p] * (particles_.volume0[p] * particles_.F[p].determinant());
       Mat<Dim> affine = Mat<Dim>::Zero();
-      if (apic) {
-        Mat<Dim> D = Mat<Dim>::Zero();
-        for (int i = 0; i < n; ++i) {
-          const Vec<Dim> r = bg_.points[e[i].node] - xp;
-          D.noalias() += e[i].w * r * r.transpose();
-        }
-        // D is invertible for UMLS and B-splines; linear FEM makes it singular on cell edges,
-        // where the affine term is dropped.
-        Mat<Dim> D_inv;
-        bool invertible;
-        D.computeInverseWithCheck(D_inv, invertible, 1e-14 * D.trace() * D.trace());
-        if (invertible) affine = particles_.B[p] * D_inv;
-      }
+      if (apic) affine = apic_affine(p, e, n);
       affine_[p] = affine;
       const Vec<Dim> gravity_force = mp * settings_.gravity;
       for (int i = 0; i < n; ++i) {
@@ -312,70 +409,14 @@ void MpmSolver<Dim>::step(double dt) {
       for (int t = 1; t < threads; ++t)
         for (int k = 0; k < kStride; ++k)
           acc[k] += scatter_[(static_cast<size_t>(t) * N + i) * kStride + k];
-      grid_mass_[i] = acc[0];
-      if (!(acc[1] > 0.0)) {  // no particle reaches the node
-        grid_v_[i].setZero();
-        grid_v_new_[i].setZero();
-        grid_share_[i] = 0.0;
-        continue;
-      }
-      // MLS weights can be negative at the far edge of a particle's support, so the signed mass
-      // m_i = Σ w m_p of a node can be tiny, zero or negative while its momentum and force are
-      // not. Dropping such a node loses them (measured: the rotating square's momenta jumped
-      // from 1e-16 to 1e-7 / 1e-6 at the first such node, step 13943), and dividing by a
-      // cancelled mass blows its velocity up. Instead the node pays its momentum q_i = p_i + dt
-      // f_i back with the weights w' = w + λ (|w| − w), i.e. v_i = q_i / Σ w' m_p: with λ = 0
-      // this is APIC itself, with λ = 1 particle p gets the share |w| m_p / Σ|w| m (APIC again
-      // when all weights share a sign). Any λ conserves linear and angular momentum, APIC terms
-      // included; λ grows continuously as ρ = m_i / Σ|w| m falls below κ, so no rounding
-      // difference flips a discrete choice.
-      const double lambda = std::clamp(1.0 - acc[0] / (kSharedMassFraction * acc[1]), 0.0, 1.0);
-      grid_share_[i] = lambda;
-      if (lambda > 0.0) ++shared_here;
-      Vec<Dim> v, f;
-      const double m_eff = acc[0] + lambda * (acc[1] - acc[0]);
-      for (int a = 0; a < Dim; ++a) {
-        v[a] = acc[2 + a] / m_eff;
-        f[a] = acc[2 + Dim + a];
-      }
-      Vec<Dim> vn = v + dt / m_eff * f;
-      for (int32_t c = constraint_offsets_[i]; c < constraint_offsets_[i + 1]; ++c) {
-        const NodeConstraint<Dim>& con = constraints_[c];
-        const double nn = con.normal.squaredNorm();
-        if (con.type == BoundaryType::kFixed || nn == 0.0) {
-          vn.setZero();
-        } else {
-          const double vdot = vn.dot(con.normal);
-          if (con.type == BoundaryType::kRoller || vdot > 0.0) vn -= vdot / nn * con.normal;
-        }
-      }
-      grid_v_[i] = v;
-      grid_v_new_[i] = vn;
+      if (update_node(i, acc, dt)) ++shared_here;
     }
 #pragma omp atomic
     shared_nodes += shared_here;
 #pragma omp barrier
     // Ghost nodes mirror the (already constrained) velocities at their reflected points.
 #pragma omp for schedule(static)
-    for (size_t g = 0; g < ghosts_.size(); ++g) {
-      const NodeConstraint<Dim>& con = ghosts_[g];
-      Vec<Dim> vm = Vec<Dim>::Zero(), vo = Vec<Dim>::Zero();
-      for (int k = 0; k < con.mirror_count; ++k) {
-        // A shared node's value is a momentum share rather than a velocity: it counts 1 − λ.
-        const double w = con.mirror_weights[k] * (1.0 - grid_share_[con.mirror_nodes[k]]);
-        vm += w * grid_v_new_[con.mirror_nodes[k]];
-        vo += w * grid_v_[con.mirror_nodes[k]];
-      }
-      const double nn = con.normal.squaredNorm();
-      auto reflect = [&](const Vec<Dim>& v) -> Vec<Dim> {
-        if (con.type == BoundaryType::kFixed || nn == 0.0) return -v;
-        const double vdot = v.dot(con.normal);
-        if (con.type == BoundaryType::kSlip && vdot <= 0.0) return v;
-        return v - 2.0 * vdot / nn * con.normal;
-      };
-      ghost_v_[g] = reflect(vo);
-      ghost_v_new_[g] = reflect(vm);
-    }
+    for (size_t g = 0; g < ghosts_.size(); ++g) mirror_ghost(g);
 #pragma omp for schedule(static)
     for (size_t g = 0; g < ghosts_.size(); ++g) {
       if (!ghost_writes_[g]) continue;  // a later ghost of the same node writes it (no race)
@@ -386,8 +427,14 @@ void MpmSolver<Dim>::step(double dt) {
   }
   if (failure.failed()) fail(failure.particle, failure.cause);
   shared_node_steps_ += shared_nodes;
+}
 
-  // 3. G2P, deformation update, checks and stresses.
+template <int Dim>
+void MpmSolver<Dim>::grid_to_particles(double dt) {
+  const int32_t P = particles_.size();
+  const bool apic = settings_.transfer == Transfer::kApic;
+  Failure failure;
+  // G2P, deformation update, checks and stresses.
   const double flip = settings_.flip_ratio;
 #pragma omp parallel for schedule(static)
   for (int32_t p = 0; p < P; ++p) {
@@ -444,8 +491,6 @@ void MpmSolver<Dim>::step(double dt) {
     if (!sigma_[p].allFinite()) failure.record(p, "NaN stress");
   }
   if (failure.failed()) fail(failure.particle, failure.cause);
-  time_ += dt;
-  ++steps_;
 }
 
 template <int Dim>

@@ -102,10 +102,29 @@ class MpmSolver {
   int64_t steps() const { return steps_; }
   double max_wave_speed() const { return max_wave_speed_; }
   // Node-steps so far in which negative MLS weights cancelled most of a node's mass, so that the
-  // node paid its momentum back by |w| (see step()); a count, for tests and reports.
+  // node paid its momentum back by |w| (see update_node()); a count, for tests and reports.
   int64_t shared_node_steps() const { return shared_node_steps_; }
 
  private:
+  // The phases of step(), in order; each throws through fail() on the first bad particle.
+  // Locates the particles and sizes their kernel slots (entry_offsets_, entries_).
+  void locate_particles();
+  // Evaluates the kernels, scatters mass, momentum and force to the nodes, reduces them and
+  // updates the grid velocities (symplectic Euler, constraints, ghost mirrors).
+  void particles_to_grid(double dt);
+  // Gathers the grid velocities back, moves the particles, updates F, plasticity and stress.
+  void grid_to_particles(double dt);
+  // APIC affine velocity B D⁻¹ of particle p over its n kernel entries e, 1/s (zero where D is
+  // singular).
+  Mat<Dim> apic_affine(int32_t p, const KernelEntry<Dim>* e, int n) const;
+  // Grid update of node i from its reduced scatter values acc = [mass, Σ |w| m_p, momentum (Dim),
+  // force (Dim)]: mass, velocity, share λ and the constrained new velocity after dt. Returns
+  // whether the node is shared (λ > 0).
+  bool update_node(int32_t i, const double* acc, double dt);
+  // Applies node i's constraints to its new velocity vn.
+  void constrain_node(int32_t i, Vec<Dim>& vn) const;
+  // Ghost g's mirror image of the constrained grid velocities, staged in ghost_v_, ghost_v_new_.
+  void mirror_ghost(size_t g);
   void update_stress(int32_t p);
   [[noreturn]] void fail(int32_t particle, const std::string& cause) const;
 
@@ -139,7 +158,7 @@ class MpmSolver {
   std::vector<double> grid_mass_;
   std::vector<Vec<Dim>> grid_v_, grid_v_new_;
   // λ in [0, 1] per node: > 0 where negative MLS weights cancel most of the node's mass; the
-  // node's momentum is then paid back with weights w + λ (|w| − w) (see step()).
+  // node's momentum is then paid back with weights w + λ (|w| − w) (see update_node()).
   std::vector<double> grid_share_;
   std::vector<Mat<Dim>> affine_;  // [P] APIC affine velocity C = B D⁻¹ of the last P2G, 1/s
   std::vector<Vec<Dim>> ghost_v_,

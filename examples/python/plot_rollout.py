@@ -20,7 +20,7 @@ import bsms  # noqa: E402
 def main(run, out_png, split="test", rollout_out=None, threads=0):
     run = bsms.Run(run, split=split)
     rollout_out = rollout_out or os.path.join(run.path, "rollout")
-    metrics = run.rollout(split=split, out=rollout_out, trajectories=1, threads=threads)
+    metrics = run.rollout(split=split, out=rollout_out, max_trajectories=1, threads=threads)
 
     # The rollout's file holds the prediction (world_pos) and the truth (target_world_pos).
     predicted = bsms.Dataset(os.path.join(rollout_out, f"{split}.h5"))

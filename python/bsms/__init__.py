@@ -264,18 +264,20 @@ class Run:
         """
         return self._run.predict(mesh, list(positions), prescribed, int(threads))
 
-    def rollout(self, split="test", data=None, out=None, trajectories=0, steps=0, seeding=None,
+    def rollout(self, split="test", data=None, out=None, max_trajectories=0, max_steps=0,
+                seeding=None,
                 one_step=False, project=None, threads=0):
         """Rolls the model out as `bsms rollout` does and returns its metrics.json as a dict.
 
         Writes out (default RUN/rollout)/<split>.h5 with the predicted and true positions
         (bsms.Dataset reads it), an XDMF per trajectory and metrics.json. project: e.g.
-        "walls,cells,contact" or "all" (--project). trajectories, steps: 0 = all.
+        "walls,cells,contact" or "all" (--project). max_trajectories, max_steps: 0 = all.
         """
         if isinstance(project, (list, tuple)):
             project = ",".join(project)
         text = self._torch._rollout(self.path, split, _os.fspath(data or ""), seeding or "",
-                                    _os.fspath(out or ""), int(trajectories), int(steps),
+                                    _os.fspath(out or ""), int(max_trajectories),
+                                    int(max_steps),
                                     bool(one_step), project or "", int(threads))
         return _json.loads(text)
 

@@ -89,9 +89,28 @@ void check_output_file(const std::string& path) {
     throw InputError(path + ": output is a folder, expected a file");
 }
 
-}  // namespace
+// Multilevel.contact_enhance: contact edges (2, E) carried to every level.
+py::list contact_enhance(const PyMultilevel& g, const py::handle& pairs) {
+  const py::array a = checked_array(pairs, "contact", 'i', 2, 2);
+  if (a.shape(0) != 2)
+    throw InputError("contact: expected shape (2, E) (senders, receivers), got " + shape_text(a));
+  const auto c = as_contiguous<int64_t>(a);
+  EdgeList edges;
+  const int64_t e = a.shape(1);
+  edges.data.resize(static_cast<size_t>(2 * e));
+  for (int64_t k = 0; k < e; ++k) {
+    edges.data[static_cast<size_t>(2 * k)] = c.data()[k];
+    edges.data[static_cast<size_t>(2 * k + 1)] = c.data()[e + k];
+  }
+  const std::vector<EdgeList> levels =
+      run_unlocked([&] { return enhance_contact_edges_all_levels(g.graph, edges); });
+  py::list out;
+  for (const EdgeList& l : levels) out.append(edge_index(l));
+  return out;
+}
 
-void bind_preprocess(py::module_& m) {
+// The Multilevel class: levels as dicts, the build report, save, contact enhancement.
+void bind_multilevel_class(py::module_& m) {
   py::class_<PyMultilevel>(m, "Multilevel",
                            "A bi-stride multilevel graph: a sequence of levels, level 0 the mesh "
                            "graph. Each level is a dict: num_nodes, edges (2 x E int64, "
@@ -130,31 +149,13 @@ void bind_preprocess(py::module_& m) {
           },
           py::arg("path"),
           "write the multilevel graph file bsms preprocess writes (HDF5, written atomically)")
-      .def(
-          "contact_enhance",
-          [](const PyMultilevel& g, const py::handle& pairs) {
-            const py::array a = checked_array(pairs, "contact", 'i', 2, 2);
-            if (a.shape(0) != 2)
-              throw InputError("contact: expected shape (2, E) (senders, receivers), got " +
-                               shape_text(a));
-            const auto c = as_contiguous<int64_t>(a);
-            EdgeList edges;
-            const int64_t e = a.shape(1);
-            edges.data.resize(static_cast<size_t>(2 * e));
-            for (int64_t k = 0; k < e; ++k) {
-              edges.data[static_cast<size_t>(2 * k)] = c.data()[k];
-              edges.data[static_cast<size_t>(2 * k + 1)] = c.data()[e + k];
-            }
-            const std::vector<EdgeList> levels =
-                run_unlocked([&] { return enhance_contact_edges_all_levels(g.graph, edges); });
-            py::list out;
-            for (const EdgeList& l : levels) out.append(edge_index(l));
-            return out;
-          },
-          py::arg("contact"),
-          "contact edges (2 x E, level-0 node indices) carried to every level, thesis eq. 4.1: "
-          "a list of 2 x E_k arrays, level 0 sorted and unique");
+      .def("contact_enhance", &contact_enhance, py::arg("contact"),
+           "contact edges (2 x E, level-0 node indices) carried to every level, thesis eq. 4.1: "
+           "a list of 2 x E_k arrays, level 0 sorted and unique");
+}
 
+// multilevel (build from arrays) and read_multilevel (from a file).
+void bind_multilevel_builders(py::module_& m) {
   m.def(
       "multilevel",
       [](const py::handle& positions, const py::handle& cells, const py::object& levels,
@@ -188,7 +189,9 @@ void bind_preprocess(py::module_& m) {
         return result;
       },
       py::arg("path"), "reads and checks a multilevel graph file (bsms preprocess's output)");
+}
 
+void bind_read_mesh(py::module_& m) {
   m.def(
       "read_mesh",
       [](const Path& path) {
@@ -208,6 +211,14 @@ void bind_preprocess(py::module_& m) {
       py::arg("path"),
       "reads a mesh as bsms preprocess --mesh does (.msh 2.2/4.1 directly, other formats and .geo "
       "through gmsh in a child process): positions (N, dim), cells (C, k), node_groups");
+}
+
+}  // namespace
+
+void bind_preprocess(py::module_& m) {
+  bind_multilevel_class(m);
+  bind_multilevel_builders(m);
+  bind_read_mesh(m);
 }
 
 }  // namespace bsms::python

@@ -72,7 +72,7 @@ std::string checkpoint_summary(const std::string& path, const std::string& inden
     out << indent << "  step " << s.step << ", wall time " << s.wall_s << " s";
     if (!std::isnan(s.loss))
       out << ", loss " << s.loss << ", valid loss " << s.valid_loss << " (zero prediction "
-          << s.valid_baseline << ")";
+          << s.valid_zero_prediction << ")";
     out << '\n';
   }
   out << indent << "  model: " << model.tensors << " tensors, " << model.values

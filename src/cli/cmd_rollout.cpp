@@ -1,5 +1,6 @@
-// bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR] [--trajectories K]
-// [--steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize] [--project LIST] [--threads T]
+// bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR]
+// [--max-trajectories K] [--max-steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize]
+// [--project LIST] [--threads T]
 #include "cli/command.hpp"
 #include "cli/programs.hpp"
 #include "core/physical_projection.hpp"
@@ -21,9 +22,9 @@ BSMS_COMMAND("rollout", bsms::cli::handed_command_help("rollout"), [](CLI::App& 
                  "seeding)")
       ->check(CLI::IsMember(bsms::seeding_names()));
   sub.add_option("--out", r->out, "output folder (default RUN/rollout)");
-  sub.add_option("--trajectories", r->max_trajectories, "roll out at most K (0 = all)")
+  sub.add_option("--max-trajectories", r->max_trajectories, "roll out at most K (0 = all)")
       ->check(CLI::NonNegativeNumber);
-  sub.add_option("--steps", r->max_steps, "at most S predicted steps each (0 = all)")
+  sub.add_option("--max-steps", r->max_steps, "at most S predicted steps each (0 = all)")
       ->check(CLI::NonNegativeNumber);
   sub.add_flag("--one-step", r->one_step,
                "teacher forcing: every step from the true frames (one-step errors along "

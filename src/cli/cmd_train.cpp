@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 #include "pipeline/distributed/distributed.hpp"
+#include "pipeline/distributed/launcher.hpp"
 #include "pipeline/train/trainer.hpp"
 
 namespace {
@@ -45,7 +46,7 @@ BSMS_COMMAND("train", bsms::cli::handed_command_help("train"), [](CLI::App& sub)
   sub.footer(
       "Writes RUN/config.json (resolved), RUN/checkpoints/latest.h5 (model, normalizers,\n"
       "optimizer, step; HDF5, atomic), RUN/train_log.csv (step, wall_s, loss, valid_loss,\n"
-      "valid_baseline = the loss of predicting zero, lr) and RUN/train_stats.json.\n"
+      "valid_zero_prediction = the loss of predicting zero, lr) and RUN/train_stats.json.\n"
       "Multilevel graphs are built on first use and cached in DATA/multilevel/ (or\n"
       "RUN/multilevel/ when the data folder is read-only).\n"
       "Data parallel: --nproc N starts N ranks here; across machines run one command per\n"

@@ -101,7 +101,7 @@ $ref_digests"
   log_rows "$run/train_log.csv" >rows.txt
   cmp -s rows.txt ref_rows.txt ||
     fail "round $round: log differs from the reference's: $(diff rows.txt ref_rows.txt | head -5)"
-  for key in steps final_loss final_valid_loss final_valid_baseline num_parameters; do
+  for key in steps final_loss final_valid_loss final_valid_zero_prediction num_parameters; do
     [ "$(stat_of "$run/train_stats.json" $key)" = "$(stat_of ref/train_stats.json $key)" ] ||
       fail "round $round: train_stats.json $key: $(stat_of "$run/train_stats.json" $key)," \
         "reference $(stat_of ref/train_stats.json $key)"

@@ -59,7 +59,7 @@ cp -r "$fixtures/cylinder_flow" cylinder_data
 quiet "$bsms" train "$src/configs/train/cylinder-bsms.json" --set data="$work/cylinder_data" \
   --set steps=3 --set valid_every=2 --set valid_samples=1 --set normalizer_steps=2 \
   --set model.latent=8 --out run_cylinder --threads 1
-quiet "$bsms" rollout run_cylinder --trajectories 1 --steps 5 --threads 1
+quiet "$bsms" rollout run_cylinder --max-trajectories 1 --max-steps 5 --threads 1
 for name in cylinder_flow airfoil deforming_plate flag_simple; do
   quiet "$bsms" export "$fixtures/$name" --xdmf --split train --trajectory 0 --out "mgn_$name"
 done

@@ -135,7 +135,7 @@ TEST(Networks, PerLevelBlockCounts) {
   const int levels = 3;
   auto p = make_problem(7, 6, levels, true);
   auto options = lagrangian_options(levels);
-  options.level_blocks = {3, 1, 2};
+  options.mp_per_level_list = {3, 1, 2};
   BsmsGnn model(options);
   std::set<std::string> blocks;
   for (const auto& param : model.named_parameters()) {
@@ -148,7 +148,7 @@ TEST(Networks, PerLevelBlockCounts) {
   EXPECT_EQ(model.forward(p.nodes, p.positions, p.graph).size(0), p.nodes.size(0));
 
   auto uniform = lagrangian_options(levels);
-  uniform.level_blocks = {2, 2, 2};
+  uniform.mp_per_level_list = {2, 2, 2};
   auto two = lagrangian_options(levels);
   two.mp_per_level = 2;
   torch::manual_seed(5);
@@ -165,9 +165,9 @@ TEST(Networks, PerLevelBlockCounts) {
   EXPECT_TRUE(torch::equal(a.forward(p.nodes, p.positions, p.graph),
                            b.forward(p.nodes, p.positions, p.graph)));
 
-  options.level_blocks = {2, 1};
+  options.mp_per_level_list = {2, 1};
   EXPECT_THROW(BsmsGnn{options}, InputError);
-  options.level_blocks = {2, 0, 1};
+  options.mp_per_level_list = {2, 0, 1};
   EXPECT_THROW(BsmsGnn{options}, InputError);
 }
 

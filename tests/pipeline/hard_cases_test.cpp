@@ -10,12 +10,14 @@
 #include <iterator>
 
 #include "core/error.hpp"
-#include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/adapters/scene_features.hpp"
+#include "pipeline/experiments/hard_cases.hpp"
 #include "pipeline/rollout/rollout.hpp"
 #include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/train/trainer.hpp"
 #include "plate_data.hpp"
+#include "scene_text.hpp"
 
 namespace bsms {
 namespace {
@@ -98,8 +100,9 @@ TEST_F(HardCasesTest, ZeroShotNeedsMeshesFourTimesLarger) {
 
 TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
   // A floor at y = 0 that the falling plate passes through (the data has no contact).
-  const char* floor = R"({"scene": {"background": {"type": "box", "min": [-1, 0], "max": [2, 2]},
-      "boundaries": [{"group": "bottom", "type": "fixed"}]}})";
+  const char* floor = R"({"scene": {"dim": 2,
+      "background": {"type": "box", "min": [-1, 0], "max": [2, 2], "element_size": 0.1},
+      "boundaries": [{"group": "bottom", "type": "fixed"}], "solver": {"end_time": 1.0}}})";
   write_split(dir_ / "long", "test", 1, 102, 6, testing::dragged_plate, floor);  // 10 x 10 steps
   write_split(dir_ / "short", "test", 1, 60);
   const Json m =
@@ -137,8 +140,9 @@ TEST_F(HardCasesTest, LongRolloutReportsErrorAtMultiplesOfTheHorizon) {
 TEST_F(HardCasesTest, ProjectionKeepsEveryPredictedNodeInsideAndEveryCellTheRightWayOut) {
   // The falling plate passes through a floor at y = 0.3 within the trajectory; the truth does too.
   // Its two pinned corners (kinematic: the scene holds them, at y = 0 and 0.6) are not moved.
-  const char* floor = R"({"scene": {"background": {"type": "box", "min": [-1, 0.3], "max": [2, 2]},
-      "boundaries": [{"group": "bottom", "type": "slip"}]}})";
+  const char* floor = R"({"scene": {"dim": 2,
+      "background": {"type": "box", "min": [-1, 0.3], "max": [2, 2], "element_size": 0.1},
+      "boundaries": [{"group": "bottom", "type": "slip"}], "solver": {"end_time": 1.0}}})";
   write_split(dir_ / "floor", "test", 1, 40, 6, testing::dragged_plate, floor);
   RolloutRequest q;
   q.run = (dir_ / "run").string();
@@ -185,9 +189,12 @@ TEST_F(HardCasesTest, ProjectionKeepsEveryPredictedNodeInsideAndEveryCellTheRigh
 TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   LagrangianSpec s;
   s.dim = 2;
-  resolve_walls(s,
-                R"({"scene": {"background": {"type": "box", "min": [0, -1], "max": [2, 1]},
-                    "boundaries": [{"group": "left"}, {"group": "top"}]}})",
+  resolve_walls(s, testing::typed_scene(R"({"scene": {"dim": 2,
+                    "background": {"type": "box", "min": [0, -1], "max": [2, 1],
+                                   "element_size": 0.1},
+                    "boundaries": [{"group": "left", "type": "fixed"},
+                                   {"group": "top", "type": "fixed"}],
+                    "solver": {"end_time": 1.0}}})"),
                 0.1);
   ASSERT_TRUE(s.has_walls());
   EXPECT_EQ(s.wall_lo[0], 0.0);
@@ -219,14 +226,14 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   EXPECT_NEAR(inputs[0][9].item<float>(), 0.3f, 1e-5);
 
   // Moved to a larger box (zero-shot), and to a scene without walls: same input size.
-  const LagrangianSpec big =
-      walls_for_scene(s, R"({"background": {"type": "box", "min": [0, 0], "max": [3, 3]},
-             "boundaries": [{"group": "right"}]})");
+  const LagrangianSpec big = walls_for_scene(s, testing::typed_scene(R"({"scene": {"dim": 2,
+      "background": {"type": "box", "min": [0, 0], "max": [3, 3], "element_size": 0.1},
+      "boundaries": [{"group": "right", "type": "fixed"}], "solver": {"end_time": 1.0}}})"));
   EXPECT_TRUE(std::isnan(big.wall_lo[0]));
   EXPECT_EQ(big.wall_hi[0], 3.0);
   EXPECT_EQ(big.wall_radius, 0.1);
   EXPECT_EQ(big.input_size(), s.input_size());
-  const LagrangianSpec open = walls_for_scene(s, "{}");
+  const LagrangianSpec open = walls_for_scene(s, testing::typed_scene("{}"));
   EXPECT_TRUE(open.has_walls());
   EXPECT_TRUE(std::isnan(open.wall_lo[1]) && std::isnan(open.wall_hi[1]));
   EXPECT_EQ(open.input_size(), s.input_size());
@@ -236,9 +243,10 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   slipping.momentum_wall_range = 0.08;
   slipping.momentum_slip_walls = true;
   auto moved = [&](const std::string& type) {
-    return walls_for_scene(slipping, R"({"background": {"type": "box", "min": [0, 0],
-        "max": [3, 3]}, "boundaries": [{"group": "right", "type": ")" +
-                                         type + R"("}]})");
+    return walls_for_scene(slipping, testing::typed_scene(R"({"scene": {"dim": 2,
+        "background": {"type": "box", "min": [0, 0], "max": [3, 3], "element_size": 0.1},
+        "solver": {"end_time": 1.0}, "boundaries": [{"group": "right", "type": ")" +
+                                                          type + R"("}]}})"));
   };
   EXPECT_TRUE(moved("slip").momentum_slip_walls);
   EXPECT_TRUE(moved("roller").momentum_slip_walls);
@@ -246,12 +254,14 @@ TEST(Walls, ResolvedFromTheBoxAndItsNamedSides) {
   EXPECT_DOUBLE_EQ(moved("fixed").momentum_radius, 0.12);  // free groups still conserve
 
   // No box, or a box without named sides: no walls.
-  for (const char* scene : {R"({"background": {"type": "mesh"}})",
-                            R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]},
-                                "boundaries": []})",
+  for (const char* scene : {R"({"scene": {"dim": 2, "background": {"type": "mesh", "path": "m.msh"},
+            "solver": {"end_time": 1.0}}})",
+                            R"({"scene": {"dim": 2,
+            "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.1},
+            "boundaries": [], "solver": {"end_time": 1.0}}})",
                             "{}"}) {
     LagrangianSpec t;
-    resolve_walls(t, scene, 0.1);
+    resolve_walls(t, testing::typed_scene(scene), 0.1);
     EXPECT_FALSE(t.has_walls()) << scene;
     EXPECT_EQ(t.input_size(), 2 + 4);
   }

@@ -17,8 +17,10 @@
 #include "data/generate/family.hpp"
 #include "data/generate/trajectory_solver.hpp"
 #include "models/layers.hpp"
+#include "pipeline/adapters/scene_features.hpp"
 #include "pipeline/runs/train_config.hpp"
 #include "plate_data.hpp"
+#include "scene_text.hpp"
 
 namespace bsms {
 namespace {
@@ -112,10 +114,12 @@ TEST(ContactPairs, JoinBodiesAndFarSelfContactOnly) {
 
 TEST(ContactRadius, FollowsTheSolversInteractionRange) {
   LagrangianSpec s;
-  resolve_contact_radius(s, R"({"scene": {"background": {"type": "box", "element_size": 0.04}}})",
+  resolve_contact_radius(s, testing::typed_scene(R"({"scene": {"dim": 2, "background": {
+      "type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+      "solver": {"end_time": 1.0}}})"),
                          0.025);
   EXPECT_DOUBLE_EQ(s.contact_radius, 0.06);
-  resolve_contact_radius(s, "{}", 0.025);  // no background: 1.5 mesh edges
+  resolve_contact_radius(s, testing::typed_scene("{}"), 0.025);  // no background: 1.5 mesh edges
   EXPECT_DOUBLE_EQ(s.contact_radius, 0.0375);
 }
 
@@ -174,15 +178,21 @@ TEST(FirstOrder, VelocityTargetIntegratesAndKinematicInputIsThePrescribedMotion)
   // Without the next frame the kinematic input cannot be formed: a logic error, not garbage.
   FrameState blind{store.get(plate.mesh).get(), &plate.mesh, frames[0], frames[1], {}, {}};
   EXPECT_THROW(adapter.make_batch({blind}), std::logic_error);
-  // Round trip of the resolved features: old runs (no keys) read as second order.
+  // Round trip of the resolved features, and a file missing a key is refused by name.
   const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");
   EXPECT_TRUE(back.first_order);
   EXPECT_TRUE(back.kinematic_input);
-  LagrangianSpec old;
-  const LagrangianSpec old_back = lagrangian_spec_from_json(to_json(old), "features.json");
-  EXPECT_FALSE(old_back.first_order);
-  EXPECT_FALSE(old_back.kinematic_input);
-  EXPECT_FALSE(to_json(old).contains("output"));
+  const LagrangianSpec plain_back = lagrangian_spec_from_json(to_json(LagrangianSpec{}), "f.json");
+  EXPECT_FALSE(plain_back.first_order);
+  EXPECT_FALSE(plain_back.kinematic_input);
+  Json missing = to_json(spec);
+  missing.erase("output");
+  try {
+    lagrangian_spec_from_json(missing, "features.json");
+    ADD_FAILURE() << "a features file without 'output' was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("output"), std::string::npos) << e.what();
+  }
 }
 
 TEST(History, WidensTheInputAndRoundTrips) {
@@ -192,8 +202,7 @@ TEST(History, WidensTheInputAndRoundTrips) {
   EXPECT_EQ(spec.input_size(), one + 3 * spec.dim);
   const LagrangianSpec back = lagrangian_spec_from_json(to_json(spec), "features.json");
   EXPECT_EQ(back.history, 4);
-  // Runs trained before the key read as one velocity; a bad value names the key.
-  EXPECT_FALSE(to_json(LagrangianSpec{}).contains("history"));
+  // The default reads back as one velocity; a bad value names the key.
   EXPECT_EQ(lagrangian_spec_from_json(to_json(LagrangianSpec{}), "f.json").history, 1);
   Json bad = to_json(spec);
   bad["history"] = 0;
@@ -460,10 +469,11 @@ torch::Tensor placed(const TrajectoryMesh& m, const std::vector<std::pair<double
 }
 
 TEST(MomentumGroups, BodiesInRangeJoinWallsAndKinematicNodesRelease) {
-  const std::string scene = R"({"scene": {
+  const auto scene = testing::typed_scene(R"({"scene": {"dim": 2,
       "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
       "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"},
-                     {"group": "bottom", "type": "roller"}, {"group": "top", "type": "slip"}]}})";
+                     {"group": "bottom", "type": "roller"}, {"group": "top", "type": "slip"}],
+      "solver": {"end_time": 1.0}}})");
   LagrangianSpec spec;
   resolve_walls(spec, scene, 0.1);
   ASSERT_EQ(resolve_momentum(spec, scene, false), "");  // "free": groups near no wall only
@@ -509,9 +519,10 @@ TEST(MomentumGroups, BodiesInRangeJoinWallsAndKinematicNodesRelease) {
   expect_keeps(m, m.group[0], {0, 1, 0});
   EXPECT_EQ(m.group[8], -1);
   // A fixed boundary anywhere: walls are not slip, a group near one is left out again.
-  const std::string fixed = R"({"scene": {
+  const auto fixed = testing::typed_scene(R"({"scene": {"dim": 2,
       "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
-      "boundaries": [{"group": "left", "type": "slip"}, {"group": "top", "type": "fixed"}]}})";
+      "boundaries": [{"group": "left", "type": "slip"}, {"group": "top", "type": "fixed"}],
+      "solver": {"end_time": 1.0}}})");
   LagrangianSpec sticky;
   resolve_walls(sticky, fixed, 0.1);
   ASSERT_EQ(resolve_momentum(sticky, fixed), "");
@@ -583,7 +594,9 @@ TEST(RigidNoise, ScalesOnlyEachBodysRigidPart) {
 }
 
 TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
-  const std::string walls = R"("boundaries": [{"group": "left"}, {"group": "right"}])";
+  const std::string walls =
+      R"("boundaries": [{"group": "left", "type": "fixed"}, {"group": "right", "type": "fixed"}])";
+  // `scene`: a stored scene text.
   auto why = [&](const std::string& scene, bool with_walls = true) {
     LagrangianSpec s;
     if (with_walls) {
@@ -591,22 +604,28 @@ TEST(MomentumAuto, OnlyForScenesWithoutExternalForces) {
       s.wall_hi = {1.0, std::nan("")};
       s.wall_radius = 0.1;
     }
-    return resolve_momentum(s, scene);
+    return resolve_momentum(s, testing::typed_scene(scene));
+  };
+  // A family's base scene with these keys.
+  auto base = [](const std::string& keys) {
+    return R"({"scene": {"dim": 2, "solver": {"end_time": 1.0}, )" + keys + "}}";
   };
   const std::string box =
       R"("background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04})";
-  EXPECT_EQ(why("{" + box + ", " + walls + "}"), "");
-  EXPECT_EQ(why("{" + box + ", " + walls + R"(, "gravity": [0.0, 0.0]})"), "");
-  EXPECT_NE(why("{" + box + ", " + walls + R"(, "gravity": [0.0, -9.81]})").find("gravity"),
+  EXPECT_EQ(why(base(box + ", " + walls)), "");
+  EXPECT_EQ(why(base(box + ", " + walls + R"(, "gravity": [0.0, 0.0])")), "");
+  EXPECT_NE(why(base(box + ", " + walls + R"(, "gravity": [0.0, -9.81])")).find("gravity"),
             std::string::npos);
-  EXPECT_NE(why("{" + box + ", " + walls + R"(, "gravity": [0.0, [-9.81, -4.0]]})").find("gravity"),
-            std::string::npos);
+  // Gravity that is no list of numbers is refused where the scene is read, never taken for none.
+  EXPECT_THROW(why(base(box + ", " + walls + R"(, "gravity": [0.0, [-9.81, -4.0]])")), InputError);
   EXPECT_NE(
-      why("{" + box + R"(, "boundaries": [{"point": [0, 0], "normal": [-1, 0], "type": "fixed"}]})")
+      why(base(box + R"(, "boundaries": [{"point": [0, 0], "normal": [-1, 0], "type": "fixed"}])"))
           .find("boundary"),
       std::string::npos);
-  EXPECT_NE(why("{" + box + ", " + walls + "}", false).find("wall"), std::string::npos);
-  EXPECT_NE(why(R"({"background": {"type": "mesh"}})").find("box"), std::string::npos);
+  EXPECT_NE(why(base(box + ", " + walls), false).find("wall"), std::string::npos);
+  EXPECT_NE(why(base(R"("background": {"type": "mesh", "path": "m.msh"})")).find("box"),
+            std::string::npos);
+  EXPECT_NE(why("{}").find("box"), std::string::npos);  // public data: no scene
   // The shipped default scene family and the cantilever scene.
   const std::string root = std::string(BSMS_SOURCE_DIR) + "/configs/";
   auto file = [](const std::string& path) {
@@ -626,10 +645,10 @@ TEST(MomentumProjection, MpmDisksConserveMomentumOnFreeGroupsAndAlongSlipWalls) 
   const std::string family_file = std::string(BSMS_SOURCE_DIR) + "/configs/families/disks2d.json";
   const generate::FamilyConfig family = generate::load_family(family_file, {"frames=48"});
   std::ifstream in(family_file);
-  const std::string scene_json((std::istreambuf_iterator<char>(in)), {});
+  const auto scene = testing::typed_scene(std::string(std::istreambuf_iterator<char>(in), {}));
   LagrangianSpec spec;
-  resolve_walls(spec, scene_json, 0.1);
-  ASSERT_EQ(resolve_momentum(spec, scene_json), "");
+  resolve_walls(spec, scene, 0.1);
+  ASSERT_EQ(resolve_momentum(spec, scene), "");
   ASSERT_TRUE(spec.momentum_slip_walls);
   double kept_linear = 0, off = 0, all = 0, normal = 0, at_walls = 0;
   int free_groups = 0, wall_groups = 0;

@@ -19,18 +19,19 @@
 #include "gif_frames.hpp"
 #include "models/checkpoint.hpp"
 #include "models/fused_adam.hpp"
+#include "pipeline/adapters/scene_symmetry.hpp"
+#include "pipeline/adapters/simulator.hpp"
 #include "pipeline/report/animation.hpp"
-#include "pipeline/train/legacy_checkpoint.hpp"
 #include "pipeline/report/plotting.hpp"
 #include "pipeline/report/report.hpp"
 #include "pipeline/rollout/rollout.hpp"
 #include "pipeline/runs/run_files.hpp"
-#include "pipeline/rollout/scene_symmetry.hpp"
-#include "pipeline/adapters/simulator.hpp"
 #include "pipeline/runs/train_stats.hpp"
+#include "pipeline/train/legacy_checkpoint.hpp"
 #include "pipeline/train/trainer.hpp"
 #include "pipeline/train/training_data.hpp"
 #include "plate_data.hpp"
+#include "scene_text.hpp"
 
 namespace bsms {
 namespace {
@@ -253,7 +254,7 @@ TEST(KnownAnswer, BsmsLearnsSpringPlateAccelerations) {
   r.quiet = true;
   const TrainResult result = train(r);
   const TrainStats stats = read_train_stats(run_stats_path(r.out));
-  const double baseline = stats.final_valid_baseline;
+  const double baseline = stats.final_valid_zero_prediction;
   EXPECT_GT(baseline, 0.5);  // normalised targets: predicting zero scores about dim = 2
   EXPECT_LT(result.final_valid_loss, 0.05 * baseline)
       << "validation loss " << result.final_valid_loss << ", zero prediction " << baseline;
@@ -262,7 +263,7 @@ TEST(KnownAnswer, BsmsLearnsSpringPlateAccelerations) {
   std::ifstream log(run_log_path(r.out));
   std::string header;
   std::getline(log, header);
-  EXPECT_EQ(header, "step,wall_s,loss,valid_loss,valid_baseline,lr");
+  EXPECT_EQ(header, "step,wall_s,loss,valid_loss,valid_zero_prediction,lr");
 }
 
 // bsms rollout --ensemble: the members' predicted accelerations are averaged at every step, each
@@ -322,7 +323,7 @@ TEST_F(PipelineTest, EnsembleRolloutAveragesTheMembersAccelerations) {
 // A square box with four slip walls and no gravity: a scene with the 8 symmetries of the square
 // (the group --symmetrize and features.augment read; wall inputs and momentum come from it too).
 const char* const kSlipBox =
-    R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}]}})";
+    R"({"scene": {"dim": 2, "background": {"type": "box", "min": [-0.5, -0.5], "max": [1.5, 1.5], "element_size": 0.1}, "boundaries": [{"group": "left", "type": "slip"}, {"group": "right", "type": "slip"}, {"group": "bottom", "type": "slip"}, {"group": "top", "type": "slip"}], "solver": {"end_time": 1.0}}})";
 
 // A training split of `trajectories` dragged plates in kSlipBox under `data`, and a 2-level
 // configuration that trains on it.
@@ -355,7 +356,7 @@ TEST_F(PipelineTest, SymmetrizedRolloutIsEquivariantToTheBoxsSymmetries) {
   write_split(data, "valid", 1, 12, 6, testing::dragged_plate, box);
   write_split(data, "test", 1, 12, 6, testing::dragged_plate, box);
   // The test trajectory turned by a quarter (x' = c - (y - c), y' = x): a symmetry of the box.
-  const auto group = scene_symmetries(box, 2);
+  const auto group = scene_symmetries(testing::typed_scene(box), 2);
   ASSERT_EQ(group.size(), 8u);
   BoxSymmetry turn;
   for (const auto& g : group)
@@ -595,7 +596,8 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   const Json cfg = load_json_file(run_config_path(straight.out));
   const LagrangianSpec spec = lagrangian_spec_from_json(cfg["features_resolved"], "config");
   const TrainConfig config = parse_train_config(cfg["config"], "config");
-  LearnedSimulator a(spec, config.model, 1), b(spec, config.model, 1);
+  LearnedSimulator a(LagrangianAdapter(spec).model_shape(), config.model, 1),
+      b(LagrangianAdapter(spec).model_shape(), config.model, 1);
   EXPECT_EQ(load_checkpoint(run_checkpoint_path(straight.out), a, nullptr).step, 40);
   EXPECT_EQ(load_checkpoint(run_checkpoint_path(split.out), b, nullptr).step, 40);
   const auto pa = a.named_parameters(), pb = b.named_parameters();
@@ -628,7 +630,8 @@ TEST_F(PipelineTest, OlderTorchCheckpointIsRefusedThenConvertedOnce) {
   const Json cfg = load_json_file(run_config_path(r.out));
   const LagrangianSpec spec = lagrangian_spec_from_json(cfg["features_resolved"], "config");
   const TrainConfig config = parse_train_config(cfg["config"], "config");
-  LearnedSimulator sim(spec, config.model, cfg["levels"].get<int>());
+  LearnedSimulator sim(LagrangianAdapter(spec).model_shape(), config.model,
+                       cfg["levels"].get<int>());
   FusedAdam optimizer(sim.parameters(), torch::optim::AdamOptions(config.optimizer.lr));
   const CheckpointInfo info = load_checkpoint(h5, sim, &optimizer);
   {  // written as older bsms wrote it
@@ -638,7 +641,7 @@ TEST_F(PipelineTest, OlderTorchCheckpointIsRefusedThenConvertedOnce) {
     archive.write("optimizer", optimizer_archive);
     archive.write("step", torch::tensor({info.step}, torch::kInt64));
     archive.write("wall_s", torch::tensor({info.wall_s}, torch::kFloat64));
-    archive.write("losses", torch::tensor({info.loss, info.valid_loss, info.valid_baseline},
+    archive.write("losses", torch::tensor({info.loss, info.valid_loss, info.valid_zero_prediction},
                                           torch::kFloat64));
     archive.save_to(pt);
   }

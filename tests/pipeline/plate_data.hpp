@@ -113,14 +113,19 @@ inline Trajectory spring_plate(int64_t seed, int frames, int m = 6) {
   return t;
 }
 
+// The scene stored with the plates by default, as `bsms generate` stores a family file: a base
+// scene on a mesh background, so without a box (no walls, no symmetries, no momentum "auto") and
+// without an element_size (the contact radius follows the mesh edges).
+inline constexpr const char* kPlateScene = R"({"name": "plate", "scene": {"dim": 2,
+    "background": {"type": "mesh", "path": "plate.msh"}, "solver": {"end_time": 1.0}}})";
+
 // One split file of `count` trajectories made by `make(seed, frames, m)` (dragged_plate or
 // spring_plate); validation and test seeds differ from the training ones. `scene`: the scene
-// JSON stored with them (default: a name without a box).
+// JSON stored with them (default: kPlateScene).
 using PlateMaker = Trajectory (*)(int64_t, int, int);
 inline void write_split(const fs::path& dir, const std::string& split, int count, int frames,
                         int m = 6, PlateMaker make = dragged_plate, const char* scene = nullptr) {
-  if (!scene)
-    scene = make == dragged_plate ? R"({"name": "falling_plate"})" : R"({"name": "spring_plate"})";
+  if (!scene) scene = kPlateScene;
   DatasetWriter w((dir / (split + ".h5")).string(), scene, 2, 0.01);
   for (int i = 0; i < count; ++i) {
     Trajectory t = make(i + (split == "train" ? 0 : 100), frames, m);

@@ -1,28 +1,41 @@
 // The symmetries of box scenes (counted against the group orders a square, a rectangle, a cube,
 // gravity and unequal walls leave) and their action on points, vectors and meshes.
-#include "pipeline/rollout/scene_symmetry.hpp"
+#include "pipeline/adapters/scene_symmetry.hpp"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <algorithm>
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "core/error.hpp"
+#include "plate_data.hpp"
+#include "scene_text.hpp"
+
 namespace bsms {
 namespace {
 
-std::string box_scene(const std::string& min, const std::string& max,
-                      const std::vector<std::pair<std::string, std::string>>& sides,
-                      const std::string& gravity = "") {
+// The typed scene of a family file whose base scene is a box from `min` to `max` (JSON lists of
+// `dim` numbers) with these sides' boundary types.
+std::optional<mpm::Scene> box_scene(const std::string& min, const std::string& max,
+                                    const std::vector<std::pair<std::string, std::string>>& sides,
+                                    const std::string& gravity = "") {
   std::string boundaries;
   for (const auto& [group, type] : sides)
     boundaries += std::string(boundaries.empty() ? "" : ",") + R"({"group": ")" + group +
                   R"(", "type": ")" + type + R"("})";
-  return R"({"family": "disks", "scene": {"background": {"type": "box", "min": )" + min +
-         R"(, "max": )" + max + R"(, "element_size": 0.1}, "boundaries": [)" + boundaries + "]" +
-         (gravity.empty() ? "" : R"(, "gravity": )" + gravity) + "}}";
+  const int dim = 1 + static_cast<int>(std::count(min.begin(), min.end(), ','));
+  return testing::typed_scene(R"({"family": "disks", "scene": {"dim": )" + std::to_string(dim) +
+                                  R"(, "background": {"type": "box", "min": )" + min +
+                                  R"(, "max": )" + max +
+                                  R"(, "element_size": 0.1}, "boundaries": [)" + boundaries + "]" +
+                                  (gravity.empty() ? "" : R"(, "gravity": )" + gravity) +
+                                  R"(, "solver": {"end_time": 1.0}}})",
+                              dim);
 }
 
 const std::vector<std::pair<std::string, std::string>> kSlip2d = {
@@ -63,23 +76,30 @@ TEST(SceneSymmetry, CountsTheGroupEachBoxLeaves) {
                              3)
                 .size(),
             48u);
-  // No box, a boundary that is no side of it, a boundary type or a rotation that is no value: the
-  // identity alone, and why.
-  for (
-      const std::string& scene :
-      {std::string(R"({"name": "falling_plate"})"),
-       std::string(
-           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}, "boundaries": [{"point": [0, 0], "normal": [1, 1], "type": "slip"}]})"),
-       std::string(
-           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}, "boundaries": [{"group": "left", "type": 3}]})"),
-       std::string(
-           R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1], "rotation_deg": "a"}})")}) {
+  // No scene, no box, a boundary that is no side of it, two types on one side or a rotated box:
+  // the identity alone, and why.
+  const std::string box =
+      R"("dim": 2, "solver": {"end_time": 1.0}, "background": {"type": "box", "min": [0, 0], )"
+      R"("max": [1, 1], "element_size": 0.1)";
+  for (const std::string& scene :
+       {std::string("{}"), std::string(testing::kPlateScene),
+        R"({"scene": {)" + box +
+            R"(}, "boundaries": [{"point": [0, 0], "normal": [1, 1], "type": "slip"}]}})",
+        R"({"scene": {)" + box +
+            R"(}, "boundaries": [{"group": "left", "type": "slip"},
+                                 {"group": "left", "type": "fixed"}]}})",
+        R"({"scene": {)" + box + R"(, "rotation_deg": 30}}})"}) {
     std::string why;
-    const auto only = scene_symmetries(scene, 2, &why);
+    const auto only = scene_symmetries(testing::typed_scene(scene), 2, &why);
     ASSERT_EQ(only.size(), 1u) << scene;
     EXPECT_TRUE(only[0].is_identity());
     EXPECT_FALSE(why.empty()) << scene;
   }
+  // A boundary type or a rotation that is no value is refused where the scene is read.
+  for (const std::string& scene :
+       {R"({"scene": {)" + box + R"(}, "boundaries": [{"group": "left", "type": 3}]}})",
+        R"({"scene": {)" + box + R"(, "rotation_deg": "a"}}})"})
+    EXPECT_THROW(testing::typed_scene(scene), InputError) << scene;
 }
 
 TEST(SceneSymmetry, MapsTheBoxOntoItselfAndVectorsBack) {

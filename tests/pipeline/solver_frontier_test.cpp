@@ -178,7 +178,8 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
 
   const std::string families = std::string(BSMS_SOURCE_DIR) + "/configs/families/";
   std::vector<std::string> notes;
-  const auto disks = default_solver_settings(load_json_file(families + "disks2d.json"), notes);
+  const auto disks = default_solver_settings(load_json_file(families + "disks2d.json"),
+                                             families + "disks2d.json", notes);
   ASSERT_EQ(disks.size(), 5u);
   EXPECT_EQ(disks[0].name, "background_x1.5");
   EXPECT_EQ(disks[0].assignments, std::vector<std::string>{"scene.background.element_size=0.06"});
@@ -191,7 +192,7 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   // Every key ending in _spacing; a CFL number capped at 1 once, the second multiple dropped.
   Json press = load_json_file(families + "press2d.json");
   press["scene"]["solver"]["cfl"] = 0.6;
-  const auto p = default_solver_settings(press, notes);
+  const auto p = default_solver_settings(press, families + "press2d.json", notes);
   ASSERT_EQ(p.size(), 4u);
   EXPECT_EQ(p[2].name, "cfl_x2");
   EXPECT_EQ(p[2].assignments, std::vector<std::string>{"scene.solver.cfl=1"});
@@ -204,7 +205,7 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   notes.clear();
   Json bodies = load_json_file(families + "bodies3d.json");
   bodies["sample"]["nodes"] = Json::array({675, 2700});
-  const auto b = default_solver_settings(bodies, notes);
+  const auto b = default_solver_settings(bodies, families + "bodies3d.json", notes);
   ASSERT_EQ(b.back().name, "spacing_x1.5");
   EXPECT_EQ(b.back().assignments,
             (std::vector<std::string>{"sample.spacing=0.0525", "sample.nodes=[200,800]"}));

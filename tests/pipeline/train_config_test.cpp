@@ -31,14 +31,14 @@ TEST(TrainConfig, EveryShippedConfigParsesAndRoundTrips) {
 TEST(TrainConfig, PerLevelBlockCountsRoundTrip) {
   const TrainConfig c = parse_train_config(
       Json::parse(R"({"data": "d", "steps": 5, "model": {"mp_per_level": [3, 1, 2, 1]}})"), "t");
-  EXPECT_EQ(c.model.level_blocks, (std::vector<int>{3, 1, 2, 1}));
+  EXPECT_EQ(c.model.mp_per_level_list, (std::vector<int>{3, 1, 2, 1}));
   EXPECT_EQ(c.model.mp_per_level, 3);
   EXPECT_EQ(to_json(c)["model"]["mp_per_level"], Json::parse("[3, 1, 2, 1]"));
   const TrainConfig again = parse_train_config(to_json(c), "resolved");
-  EXPECT_EQ(again.model.level_blocks, c.model.level_blocks);
+  EXPECT_EQ(again.model.mp_per_level_list, c.model.mp_per_level_list);
   const TrainConfig plain = parse_train_config(
       Json::parse(R"({"data": "d", "steps": 5, "model": {"mp_per_level": 2}})"), "t");
-  EXPECT_TRUE(plain.model.level_blocks.empty());
+  EXPECT_TRUE(plain.model.mp_per_level_list.empty());
   EXPECT_EQ(to_json(plain)["model"]["mp_per_level"], Json(2));
 }
 

@@ -1,7 +1,7 @@
-// RUN/train_log.csv (pipeline/runs/train_log.hpp): rows written by the trainer's formatter read back
-// unchanged; a torn last line is left out, a malformed row is one InputError naming the file and
-// the line; logs written before the valid_baseline column still read; the plotted trailing
-// mean of the loss equals the mean computed window by window.
+// RUN/train_log.csv (pipeline/runs/train_log.hpp): rows written by the trainer's formatter read
+// back unchanged; a torn last line is left out, a malformed row is one InputError naming the file
+// and the line; a log in another layout is refused; the plotted trailing mean of the loss equals
+// the mean computed window by window.
 #include "pipeline/runs/train_log.hpp"
 
 #include <gtest/gtest.h>
@@ -52,7 +52,7 @@ TEST(TrainLogFile, RowsRoundTripAndTornLinesAreLeftOut) {
   TrainLogRow checked = plain;
   checked.step = 2;
   checked.valid_loss = 0.327;
-  checked.valid_baseline = 0.460242;
+  checked.valid_zero_prediction = 0.460242;
   EXPECT_EQ(format_train_log_row(plain), "1,0.093673,1.81095,,,1.99e-05");
   EXPECT_EQ(format_train_log_row(checked), "2,0.093673,1.81095,0.327,0.460242,1.99e-05");
   const std::string file =
@@ -61,25 +61,23 @@ TEST(TrainLogFile, RowsRoundTripAndTornLinesAreLeftOut) {
   const auto rows = read_train_log(file);
   ASSERT_EQ(rows.size(), 2u);
   EXPECT_FALSE(rows[0].has_valid());
-  EXPECT_TRUE(std::isnan(rows[0].valid_baseline));
+  EXPECT_TRUE(std::isnan(rows[0].valid_zero_prediction));
   EXPECT_EQ(rows[1].step, 2);
   EXPECT_DOUBLE_EQ(rows[1].valid_loss, 0.327);
-  EXPECT_DOUBLE_EQ(rows[1].valid_baseline, 0.460242);
+  EXPECT_DOUBLE_EQ(rows[1].valid_zero_prediction, 0.460242);
   EXPECT_DOUBLE_EQ(rows[1].lr, 1.99e-05);
   // The resume filter: whole rows only.
   EXPECT_TRUE(parse_train_log_row(format_train_log_row(checked)).has_value());
   EXPECT_FALSE(parse_train_log_row(kTrainLogHeader).has_value());
   EXPECT_FALSE(parse_train_log_row("3,0.2,1.5,,").has_value());
-  EXPECT_FALSE(parse_train_log_row("3,0.2,1.5,,0.4,0.001").has_value());  // baseline, no loss
+  EXPECT_FALSE(
+      parse_train_log_row("3,0.2,1.5,,0.4,0.001").has_value());  // zero prediction, no loss
   EXPECT_FALSE(parse_train_log_row("-3,0.2,1.5,,,0.001").has_value());
 
-  // A log without the valid_baseline column.
-  const auto old = read_train_log(temp_log("old.csv",
-                                           "step,wall_s,loss,valid_loss,lr\n"
-                                           "1,0.1,2.0,,0.001\n2,0.2,1.9,0.8,0.001\n"));
-  ASSERT_EQ(old.size(), 2u);
-  EXPECT_DOUBLE_EQ(old[1].valid_loss, 0.8);
-  EXPECT_TRUE(std::isnan(old[1].valid_baseline));
+  // A log in another layout (no zero-prediction column) is refused by its header.
+  EXPECT_NE(error_of(temp_log("other.csv", "step,wall_s,loss,valid_loss,lr\n1,0.1,2.0,,0.001\n"))
+                .find("other.csv: line 1 is not a training-log header"),
+            std::string::npos);
   fs::remove_all(log_dir());
 }
 
@@ -141,10 +139,10 @@ TEST(TrainLogFile, FirstReachingMatchesABruteForceScan) {
     rows[k].wall_s = 10.0 * static_cast<double>(k + 1);
   }
   rows[1].valid_loss = 0.2;
-  rows[1].valid_baseline = 0.4;
-  rows[3].valid_loss = 0.1;  // a log written before the baseline column: not comparable
+  rows[1].valid_zero_prediction = 0.4;
+  rows[3].valid_loss = 0.1;  // no zero-prediction loss beside it: not comparable
   rows[4].valid_loss = 0.1;
-  rows[4].valid_baseline = 0.5;
+  rows[4].valid_zero_prediction = 0.5;
   const std::vector<ValidationPoint> two = validation_curve(rows);
   ASSERT_EQ(two.size(), 2u);
   EXPECT_EQ(two[0].step, 2);

@@ -1,6 +1,6 @@
-// RUN/train_stats.json (pipeline/runs/train_stats.hpp): what bsms train writes its reader reads back
-// unchanged (a non-finite loss as null, read back as NaN), and a missing, mistyped, impossible or
-// unknown key is one InputError naming the file and the key.
+// RUN/train_stats.json (pipeline/runs/train_stats.hpp): what bsms train writes its reader reads
+// back unchanged (a non-finite loss as null, read back as NaN), and a missing, mistyped, impossible
+// or unknown key is one InputError naming the file and the key.
 #include "pipeline/runs/train_stats.hpp"
 
 #include <gtest/gtest.h>
@@ -24,7 +24,7 @@ TrainStats distributed_stats() {
   s.wall_s = 60.25;
   s.final_loss = 0.31;
   s.final_valid_loss = std::nan("");  // no validation ran
-  s.final_valid_baseline = std::nan("");
+  s.final_valid_zero_prediction = std::nan("");
   s.num_parameters = 779970;
   s.valid_split = "train";
   s.allreduce_ms_per_step = 1.5;

@@ -1,30 +1,82 @@
-// Physical validity of rollouts (pipeline/rollout/validity_tally.hpp and RolloutMetrics::validity): the
-// walls read from a scene, the tally's per-step means, per-trajectory and overall worst values,
+// Physical validity of rollouts (pipeline/rollout/validity_tally.hpp and RolloutMetrics::validity):
+// the walls read from a scene, the tally's per-step means, per-trajectory and overall worst values,
 // and the metrics.json round trip with its strict reader.
 #include "pipeline/rollout/validity_tally.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <set>
 #include <string>
 
+#include "core/config.hpp"
 #include "core/error.hpp"
+#include "data/mpm/background.hpp"
+#include "scene_text.hpp"
 
 namespace bsms {
 namespace {
 
 TEST(ValidityTally, WallsComeFromTheScene) {
-  const std::string scene = R"({"scene": {
+  const auto scene = testing::typed_scene(R"({"scene": {"dim": 2,
       "background": {"type": "box", "min": [0, -1], "max": [2, 1], "element_size": 0.04},
-      "boundaries": [{"group": "left", "type": "slip"}, {"group": "bottom", "type": "fixed"}]}})";
+      "boundaries": [{"group": "left", "type": "slip"}, {"group": "bottom", "type": "fixed"}],
+      "solver": {"end_time": 1.0}}})");
   const BoxWalls walls = scene_walls(scene, 2);
   ASSERT_EQ(walls.lo.size(), 2u);
   EXPECT_EQ(walls.lo[0], 0.0);
   EXPECT_EQ(walls.lo[1], -1.0);
   EXPECT_TRUE(std::isnan(walls.hi[0]) && std::isnan(walls.hi[1]));  // no right or top wall
-  EXPECT_TRUE(scene_walls("{}", 2).empty());
-  EXPECT_TRUE(scene_walls(R"({"background": {"type": "box", "min": [0, 0], "max": [1, 1]}})", 2)
+  EXPECT_TRUE(scene_walls(testing::typed_scene("{}"), 2).empty());
+  EXPECT_TRUE(scene_walls(testing::typed_scene(R"({"scene": {"dim": 2, "background": {"type": "box",
+                  "min": [0, 0], "max": [1, 1], "element_size": 0.1}, "solver": {"end_time": 1.0}}})"),
+                          2)
                   .empty());  // a box without named walls
+}
+
+// The typed scene of every shipped family, as a dataset generated from it stores it, has the walls
+// its JSON names: per axis, the box's min (max) where its low (high) side is a named boundary;
+// none when no side is named. The oracle reads the family's JSON, as scene_walls did before the
+// scene was typed.
+TEST(ValidityTally, ShippedFamiliesKeepTheirWalls) {
+  const std::filesystem::path families =
+      std::filesystem::path(BSMS_SOURCE_DIR) / "configs/families";
+  std::set<std::string> walled;
+  for (const auto& entry : std::filesystem::directory_iterator(families)) {
+    const std::string path = entry.path().string();
+    SCOPED_TRACE(path);
+    const Json family = load_json_file(path);
+    const Json& base = family.at("scene");
+    const int dim = base.at("dim").get<int>();
+    std::set<std::string> named;
+    for (const auto& b : base.value("boundaries", Json::array()))
+      if (b.contains("group")) named.insert(b.at("group").get<std::string>());
+    BoxWalls expected;
+    bool any = false;
+    for (int a = 0; a < dim; ++a) {
+      const bool lo = named.count(mpm::box_side_name(a, false)) > 0,
+                 hi = named.count(mpm::box_side_name(a, true)) > 0;
+      expected.lo.push_back(lo ? base["background"]["min"][a].get<double>() : std::nan(""));
+      expected.hi.push_back(hi ? base["background"]["max"][a].get<double>() : std::nan(""));
+      any = any || lo || hi;
+    }
+    if (!any || base["background"]["type"] != "box") expected = {};
+    const BoxWalls walls = scene_walls(testing::typed_scene(family.dump(), dim), dim);
+    ASSERT_EQ(walls.lo.size(), expected.lo.size());
+    ASSERT_EQ(walls.hi.size(), expected.hi.size());
+    for (size_t a = 0; a < expected.lo.size(); ++a) {
+      EXPECT_TRUE(walls.lo[a] == expected.lo[a] ||
+                  (std::isnan(walls.lo[a]) && std::isnan(expected.lo[a])))
+          << a;
+      EXPECT_TRUE(walls.hi[a] == expected.hi[a] ||
+                  (std::isnan(walls.hi[a]) && std::isnan(expected.hi[a])))
+          << a;
+    }
+    if (!walls.empty()) walled.insert(entry.path().filename().string());
+  }
+  // The box families with slip walls on every side; press and cantilever have none.
+  EXPECT_EQ(walled, (std::set<std::string>{"bodies3d.json", "disks2d.json", "union2d.json"}));
 }
 
 TEST(ValidityTally, MeasuresApplyByMeshAndDimension) {

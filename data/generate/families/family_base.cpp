@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "core/error.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms::generate::families {
 
@@ -22,20 +23,16 @@ Json FamilyBase::finish(Json bodies, Json boundaries, const std::vector<double>&
 
 void background_box(const Json& scene, const std::string& file, int dim, std::vector<double>& lo,
                     std::vector<double>& hi) {
-  const JsonContext ctx{file, "scene.background"};
-  if (!scene.contains("background") || !scene["background"].is_object() ||
-      scene["background"].value("type", "") != "box")
-    throw InputError(ctx.where() + " must be a box background (the samplers place bodies in it)");
-  try {
-    lo = scene["background"].at("min").get<std::vector<double>>();
-    hi = scene["background"].at("max").get<std::vector<double>>();
-  } catch (const nlohmann::json::exception&) {
-    throw InputError(ctx.where() + " needs numeric 'min' and 'max' corners");
-  }
-  // The samplers index the corners by axis: a short corner must not be read past its end.
-  if (static_cast<int>(lo.size()) != dim || static_cast<int>(hi.size()) != dim)
-    throw InputError(ctx.where() + ": 'min' and 'max' must hold " + std::to_string(dim) +
-                     " numbers (scene.dim)");
+  // Read by the scene parser, which holds the keys' defaults and checks (corners of scene.dim
+  // numbers, max > min); `dim` is that scene.dim. The keys are recorded (ConfigKeyRecorder) under
+  // a file name of their own: they are scene keys, not the family's.
+  const mpm::Scene base =
+      mpm::parse_base_scene(scene, JsonContext{file + " (base scene)", "scene"});
+  if (base.background.type != "box" || base.dim != dim)
+    throw InputError(JsonContext{file, "scene.background"}.where() +
+                     " must be a box background (the samplers place bodies in it)");
+  lo = base.background.min;
+  hi = base.background.max;
 }
 
 Json uniform_velocity(const std::vector<double>& v) {

@@ -24,7 +24,8 @@ struct FamilyBase {
   Json finish(Json bodies, Json boundaries, const std::vector<double>& gravity) const;
 };
 
-// The background box of the base scene, m [dim] each; InputError unless a box with dim corners.
+// The background box of the base scene `scene` (read strictly, mpm::parse_base_scene), m [dim]
+// each; InputError naming the key unless the base scene is valid with a box background.
 void background_box(const Json& scene, const std::string& file, int dim, std::vector<double>& lo,
                     std::vector<double>& hi);
 

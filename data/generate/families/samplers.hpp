@@ -7,7 +7,7 @@
 
 #include "core/config.hpp"
 #include "data/generate/families/family_base.hpp"
-#include "data/generate/family.hpp"
+#include "data/generate/scene_sampler.hpp"
 
 namespace bsms::generate::families {
 

@@ -152,4 +152,44 @@ std::pair<torch::Tensor, torch::Tensor> EulerianAdapter::integrate(
   return {state, pressure};
 }
 
+TrainBatch EulerianAdapter::make_train_batch(const SampleRequest& request) const {
+  const TrainConfig& config = request.config;
+  TrainBatch b;
+  const bool noisy = request.generators != nullptr;
+  std::vector<EulerianFrame> frames;
+  std::vector<torch::Tensor> nexts, pressures;
+  std::vector<std::shared_ptr<const MeshGraphs>> owners;  // alive until the batch is made
+  for (const SampleRef& ref : request.refs) {
+    const TrajectoryMesh& mesh = request.data.mesh(ref.trajectory);
+    const auto state = read_eulerian_state(request.data, spec_, ref.trajectory, ref.frame, 2);
+    owners.push_back(request.store.get(mesh));
+    frames.push_back({owners.back().get(), &mesh, state[0]});
+    nexts.push_back(state[1]);
+    if (spec_.pressure)
+      pressures.push_back(
+          read_eulerian_pressure(request.data, spec_, ref.trajectory, ref.frame + 1, 1)[0]);
+  }
+  std::vector<double> noise;
+  std::vector<at::Generator*> per_frame;
+  if (noisy) {
+    noise.assign(spec_.dim, config.features.noise_std);
+    if (spec_.density) noise.push_back(config.features.density_noise_std);
+    for (auto& g : *request.generators) per_frame.push_back(&g);
+  }
+  b.batch = make_batch(frames, noise, per_frame);
+  b.target = target(b.batch, torch::cat(nexts, 0),
+                    pressures.empty() ? torch::Tensor() : torch::cat(pressures, 0),
+                    noisy ? config.features.noise_gamma : 1.0);
+  return b;
+}
+
+ModelShape EulerianAdapter::model_shape() const {
+  ModelShape s;
+  s.input_size = spec_.input_size();
+  s.output_size = spec_.output_size();
+  s.position_dims = {spec_.dim};
+  s.edge_set_fields = {{0}};
+  return s;
+}
+
 }  // namespace bsms

@@ -12,8 +12,9 @@
 #include <vector>
 
 #include "core/config.hpp"
+#include "pipeline/adapters/adapter.hpp"
+#include "pipeline/adapters/batch.hpp"
 #include "pipeline/graphs/graph_store.hpp"
-#include "pipeline/adapters/lagrangian.hpp"
 
 namespace bsms {
 
@@ -51,10 +52,17 @@ struct EulerianFrame {
   torch::Tensor state;  // [N, state_size] float32
 };
 
-class EulerianAdapter {
+class EulerianAdapter : public DomainAdapter {
  public:
   explicit EulerianAdapter(EulerianSpec spec) : spec_(std::move(spec)) {}
   const EulerianSpec& spec() const { return spec_; }
+
+  std::string kind() const override { return "eulerian"; }
+  ModelShape model_shape() const override;
+  Json spec_json() const override { return to_json(spec_); }
+  // Predicting the fields at t+1 from those at t: noise (features.noise_std on the velocity,
+  // density_noise_std on the density) on the NORMAL nodes' state, targets as target() makes them.
+  TrainBatch make_train_batch(const SampleRequest& request) const override;
 
   // Batch.inputs = [state, one-hot], Batch.positions = {X / position_scale}, Batch.cur = the
   // state, Batch.mask = predicted nodes. With `noise_std` (one standard deviation per state

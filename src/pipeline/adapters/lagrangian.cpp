@@ -7,10 +7,8 @@
 #include <cmath>
 #include <limits>
 #include <map>
-#include <set>
 
 #include "core/radius_search.hpp"
-#include "data/mpm/background.hpp"
 #include "preprocess/contact_enhancement.hpp"
 
 namespace bsms {
@@ -21,32 +19,7 @@ Json wall_json(double v) {
   return std::isnan(v) ? Json(nullptr) : Json(v);
 }
 
-// Every boundary of a scene is "slip" or "roller": its walls push only along their normals.
-bool slip_walls_only(const Json& scene) {
-  for (const auto& b : scene.value("boundaries", Json::array())) {
-    const std::string type =
-        b.is_object() && b.contains("type") && b["type"].is_string() ? b["type"] : "";
-    if (type != "slip" && type != "roller") return false;
-  }
-  return true;
-}
-
 }  // namespace
-
-Json scene_background(const std::string& scene_json, Json* scene_out) {
-  Json parsed;
-  try {
-    parsed = parse_json_text(scene_json, "the dataset's scene");
-  } catch (const InputError&) {
-    return Json::object();  // not JSON (or beyond the reader's bounds): no scene
-  }
-  if (!parsed.is_object()) return Json::object();
-  const Json& scene =
-      parsed.contains("scene") && parsed["scene"].is_object() ? parsed["scene"] : parsed;
-  if (scene_out) *scene_out = scene;
-  const Json background = scene.value("background", Json::object());
-  return background.is_object() ? background : Json::object();
-}
 
 Json to_json(const LagrangianSpec& s) {
   Json j{{"dim", s.dim},
@@ -55,14 +28,14 @@ Json to_json(const LagrangianSpec& s) {
          {"contact_radius", s.contact_radius},
          {"strain_scale", s.strain_scale},
          {"public_layout", s.public_layout},
-         {"multilevel", s.multilevel}};
-  // Written only when they differ from what runs trained before them used.
-  if (s.mesh_dim > 0 && s.mesh_dim != s.dim) j["mesh_dim"] = s.mesh_dim;
-  if (s.first_order) j["output"] = "velocity";
-  if (s.stress) j["stress"] = true;
-  if (s.kinematic_input) j["kinematic_input"] = true;
-  if (!s.velocity_input) j["velocity_input"] = false;
-  if (s.history > 1) j["history"] = s.history;
+         {"multilevel", s.multilevel},
+         {"mesh_dim", s.mesh_dimension()},
+         {"output", s.first_order ? "velocity" : "acceleration"},
+         {"stress", s.stress},
+         {"kinematic_input", s.kinematic_input},
+         {"velocity_input", s.velocity_input},
+         {"history", s.history}};
+  // Absent: no walls, no momentum conservation.
   if (s.has_walls()) {
     Json lo = Json::array(), hi = Json::array();
     for (int a = 0; a < s.dim; ++a) {
@@ -72,57 +45,11 @@ Json to_json(const LagrangianSpec& s) {
     j["walls"] = {{"lo", lo}, {"hi", hi}, {"radius", s.wall_radius}};
   }
   if (s.has_momentum()) {
-    j["momentum"] = {{"radius", s.momentum_radius}, {"wall_range", s.momentum_wall_range}};
-    if (s.momentum_slip_walls) j["momentum"]["slip_walls"] = true;
+    j["momentum"] = {{"radius", s.momentum_radius},
+                     {"wall_range", s.momentum_wall_range},
+                     {"slip_walls", s.momentum_slip_walls}};
   }
   return j;
-}
-
-void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double radius) {
-  spec.wall_lo.clear();
-  spec.wall_hi.clear();
-  spec.wall_radius = 0.0;
-  Json scene = Json::object();
-  const Json background = scene_background(scene_json, &scene);
-  if (background.value("type", std::string()) != "box" || !background.contains("min") ||
-      !background.contains("max") || !scene.contains("boundaries"))
-    return;
-  std::set<std::string> groups;
-  for (const auto& b : scene["boundaries"])
-    if (b.is_object() && b.contains("group") && b["group"].is_string())
-      groups.insert(b["group"].get<std::string>());
-  bool any = false;
-  for (int a = 0; a < spec.dim; ++a) {
-    const bool lo = groups.count(mpm::box_side_name(a, false)) > 0,
-               hi = groups.count(mpm::box_side_name(a, true)) > 0;
-    spec.wall_lo.push_back(lo ? background["min"].at(a).get<double>() : std::nan(""));
-    spec.wall_hi.push_back(hi ? background["max"].at(a).get<double>() : std::nan(""));
-    any = any || lo || hi;
-  }
-  if (any) {
-    spec.wall_radius = radius;
-  } else {
-    spec.wall_lo.clear();
-    spec.wall_hi.clear();
-  }
-}
-
-LagrangianSpec walls_for_scene(LagrangianSpec spec, const std::string& scene_json) {
-  if (!spec.has_walls()) return spec;
-  const double radius = spec.wall_radius;
-  resolve_walls(spec, scene_json, radius);
-  // The tangential part of the projection holds only where every wall still slips.
-  if (spec.momentum_slip_walls) {
-    Json scene = Json::object();
-    scene_background(scene_json, &scene);
-    spec.momentum_slip_walls = slip_walls_only(scene);
-  }
-  if (!spec.has_walls()) {
-    spec.wall_lo.assign(spec.dim, std::nan(""));
-    spec.wall_hi.assign(spec.dim, std::nan(""));
-    spec.wall_radius = radius;
-  }
-  return spec;
 }
 
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file) {
@@ -132,20 +59,20 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   s.num_node_types = r.get<int>("num_node_types");
   s.position_scale = r.get<double>("position_scale");
   s.contact_radius = r.get<double>("contact_radius");
-  s.strain_scale = r.opt<double>("strain_scale", 0.0);
+  s.strain_scale = r.get<double>("strain_scale");
   require(s.strain_scale >= 0, r.context("strain_scale"), ">= 0 (0 = no strain channel)");
   s.public_layout = r.get<bool>("public_layout");
   s.multilevel = r.get<bool>("multilevel");
-  s.mesh_dim = r.opt<int>("mesh_dim", 0);
-  require(s.mesh_dim >= 0 && s.mesh_dim <= 3, r.context("mesh_dim"), "1, 2 or 3");
-  const std::string output = r.opt<std::string>("output", "acceleration");
+  s.mesh_dim = r.get<int>("mesh_dim");
+  require(s.mesh_dim >= 1 && s.mesh_dim <= 3, r.context("mesh_dim"), "1, 2 or 3");
+  const std::string output = r.get<std::string>("output");
   require(output == "acceleration" || output == "velocity", r.context("output"),
           "\"acceleration\" or \"velocity\"");
   s.first_order = output == "velocity";
-  s.stress = r.opt<bool>("stress", false);
-  s.kinematic_input = r.opt<bool>("kinematic_input", false);
-  s.velocity_input = r.opt<bool>("velocity_input", true);
-  s.history = r.opt<int>("history", 1);
+  s.stress = r.get<bool>("stress");
+  s.kinematic_input = r.get<bool>("kinematic_input");
+  s.velocity_input = r.get<bool>("velocity_input");
+  s.history = r.get<int>("history");
   require(s.history >= 1 && s.history <= 10, r.context("history"), "in 1..10");
   if (r.has("walls")) {
     JsonObjectReader w(r.raw("walls"), r.context("walls"));
@@ -165,7 +92,7 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
     JsonObjectReader m(r.raw("momentum"), r.context("momentum"));
     s.momentum_radius = m.get<double>("radius");
     s.momentum_wall_range = m.get<double>("wall_range");
-    s.momentum_slip_walls = m.opt<bool>("slip_walls", false);
+    s.momentum_slip_walls = m.get<bool>("slip_walls");
     require(s.momentum_radius > 0, m.context("radius"), "> 0");
     require(s.momentum_wall_range >= 0, m.context("wall_range"), ">= 0");
     m.finish();
@@ -175,36 +102,6 @@ LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& fi
   require(s.dim >= 1 && s.dim <= 3, r.context("dim"), "1, 2 or 3");
   require(s.position_scale > 0, r.context("position_scale"), "> 0");
   return s;
-}
-
-std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json, bool at_walls) {
-  spec.momentum_radius = spec.momentum_wall_range = 0.0;
-  spec.momentum_slip_walls = false;
-  Json scene = Json::object();
-  const Json background = scene_background(scene_json, &scene);
-  if (scene.contains("gravity")) {
-    const Json& g = scene["gravity"];
-    bool zero = g.is_array();
-    for (const auto& v : g) zero = zero && v.is_number() && v.get<double>() == 0.0;
-    if (!zero) return "the scene has gravity";
-  }
-  if (background.value("type", std::string()) != "box" || !background.contains("element_size") ||
-      !background["element_size"].is_number() || background.value("rotation_deg", 0.0) != 0.0)
-    return "the scene has no axis-aligned box background with an element_size";
-  if (!spec.has_walls()) return "the model has no wall inputs";
-  std::set<std::string> sides;
-  for (int a = 0; a < 3; ++a)
-    for (bool high : {false, true}) sides.insert(mpm::box_side_name(a, high));
-  for (const auto& b : scene.value("boundaries", Json::array()))
-    if (!b.is_object() || !b.contains("group") || !b["group"].is_string() ||
-        sides.count(b["group"].get<std::string>()) == 0)
-      return "the scene has a boundary that is not a side of its box";
-  const double h = background["element_size"].get<double>();
-  if (!(h > 0)) return "the scene's element_size is not positive";
-  spec.momentum_radius = 3.0 * h;
-  spec.momentum_wall_range = 2.0 * h;
-  spec.momentum_slip_walls = at_walls && slip_walls_only(scene);
-  return "";
 }
 
 std::vector<float> lumped_masses(const TrajectoryMesh& mesh) {
@@ -315,6 +212,121 @@ MomentumGroups momentum_groups(const LagrangianSpec& spec, const TrajectoryMesh&
 
 namespace {
 
+// remove_group_motion_loops' state: the nodes' groups, weights and positions, the output being
+// corrected, and per group what it keeps.
+struct GroupMotion {
+  int64_t n = 0, dim = 0, groups = 0;
+  const int64_t* pg = nullptr;  // [n] group or -1
+  const double* pw = nullptr;   // [n] weights
+  const double* px = nullptr;   // [n, dim] positions
+  double* po = nullptr;         // [n, dim] the vectors, corrected in place
+  std::vector<double> kept;     // [groups, dim + 1], 1 = kept
+  std::vector<double> centre;   // [groups, dim] weighted centres
+
+  // Removes each group's weighted mean along the axes it keeps; sets `centre`.
+  void remove_linear() {
+    const size_t gd = static_cast<size_t>(groups * dim);
+    std::vector<double> total(groups, 0.0), momentum(gd, 0.0);
+    centre.assign(gd, 0.0);
+    for (int64_t i = 0; i < n; ++i) {
+      const int64_t g = pg[i];
+      if (g < 0) continue;
+      if (g >= groups)
+        throw InputError("momentum projection: node " + std::to_string(i) + " is in group " +
+                         std::to_string(g) + " of " + std::to_string(groups));
+      total[g] += pw[i];
+      for (int64_t a = 0; a < dim; ++a) {
+        momentum[g * dim + a] += pw[i] * po[i * dim + a];
+        centre[g * dim + a] += pw[i] * px[i * dim + a];
+      }
+    }
+    for (int64_t g = 0; g < groups; ++g) {
+      total[g] = std::max(total[g], 1e-30);
+      for (int64_t a = 0; a < dim; ++a) {
+        momentum[g * dim + a] = momentum[g * dim + a] / total[g] * kept[g * (dim + 1) + a];
+        centre[g * dim + a] /= total[g];
+      }
+    }
+    for (int64_t i = 0; i < n; ++i)
+      if (pg[i] >= 0)
+        for (int64_t a = 0; a < dim; ++a) po[i * dim + a] -= momentum[pg[i] * dim + a];
+  }
+
+  // Each node's offset from its group's centre ([n, 3]), and per group the torque ([groups, 3])
+  // and the inertia tensor ([groups, 3, 3]; 2-D: its first entry).
+  void moments(std::vector<double>& r, std::vector<double>& torque,
+               std::vector<double>& inertia) const {
+    r.assign(static_cast<size_t>(n * 3), 0.0);
+    torque.assign(static_cast<size_t>(groups * 3), 0.0);
+    inertia.assign(static_cast<size_t>(groups * 9), 0.0);
+    for (int64_t i = 0; i < n; ++i) {
+      const int64_t g = pg[i];
+      if (g < 0) continue;
+      double* ri = &r[i * 3];
+      for (int64_t a = 0; a < dim; ++a) ri[a] = px[i * dim + a] - centre[g * dim + a];
+      const double* oi = po + i * dim;
+      const double m = pw[i];
+      if (dim == 2) {
+        torque[g * 3] += m * (ri[0] * oi[1] - ri[1] * oi[0]);
+        inertia[g * 9] += m * (ri[0] * ri[0] + ri[1] * ri[1]);
+      } else {
+        torque[g * 3 + 0] += m * (ri[1] * oi[2] - ri[2] * oi[1]);
+        torque[g * 3 + 1] += m * (ri[2] * oi[0] - ri[0] * oi[2]);
+        torque[g * 3 + 2] += m * (ri[0] * oi[1] - ri[1] * oi[0]);
+        const double rr = ri[0] * ri[0] + ri[1] * ri[1] + ri[2] * ri[2];
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b)
+            inertia[g * 9 + a * 3 + b] += m * ((a == b ? rr : 0.0) - ri[a] * ri[b]);
+      }
+    }
+  }
+
+  // alpha per group: 2-D torque / inertia; 3-D the pseudo-inverse of the inertia tensor (relative
+  // cut-off 3 eps of the input's type, as torch::linalg::pinv) times the torque; 0 where the
+  // group does not keep its spin.
+  std::vector<double> spin_rates(const std::vector<double>& torque,
+                                 const std::vector<double>& inertia, double eps) const {
+    std::vector<double> alpha(groups * 3, 0.0);
+    for (int64_t g = 0; g < groups; ++g) {
+      const double spin = kept[g * (dim + 1) + dim];
+      if (dim == 2) {
+        alpha[g * 3] = torque[g * 3] / std::max(inertia[g * 9], 1e-30) * spin;
+        continue;
+      }
+      const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> I(&inertia[g * 9]);
+      const Eigen::JacobiSVD<Eigen::Matrix3d> svd(I, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const Eigen::Vector3d sigma = svd.singularValues();
+      Eigen::Vector3d inv = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k)
+        if (sigma(k) > 3.0 * eps * sigma(0)) inv(k) = 1.0 / sigma(k);
+      const Eigen::Vector3d t(torque[g * 3], torque[g * 3 + 1], torque[g * 3 + 2]);
+      const Eigen::Vector3d a =
+          svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * t * spin;
+      for (int k = 0; k < 3; ++k) alpha[g * 3 + k] = a(k);
+    }
+    return alpha;
+  }
+
+  // Removes the rigid rotation alpha x r of each group.
+  void remove_spin(const std::vector<double>& r, const std::vector<double>& alpha) {
+    for (int64_t i = 0; i < n; ++i) {
+      const int64_t g = pg[i];
+      if (g < 0) continue;
+      const double* ri = &r[i * 3];
+      const double* al = &alpha[g * 3];
+      double* oi = po + i * dim;
+      if (dim == 2) {
+        oi[0] += al[0] * ri[1];
+        oi[1] -= al[0] * ri[0];
+      } else {
+        oi[0] -= al[1] * ri[2] - al[2] * ri[1];
+        oi[1] -= al[2] * ri[0] - al[0] * ri[2];
+        oi[2] -= al[0] * ri[1] - al[1] * ri[0];
+      }
+    }
+  }
+};
+
 // `v` less, on each group of `group` (-1: none), the weighted mean along the axes the group keeps
 // and, where it keeps the spin, the rigid rotation about its weighted centre of `position` that
 // fits what is left: the weighted orthogonal projection onto motions without those parts.
@@ -335,106 +347,32 @@ torch::Tensor remove_group_motion_loops(const torch::Tensor& group_in, int64_t g
   const auto weight = weight_in.to(torch::kFloat64).contiguous();
   const auto x = position_in.to(torch::kFloat64).contiguous();
   auto out = v_in.to(torch::kFloat64).contiguous().clone();
-  const int64_t* pg = group.data_ptr<int64_t>();
-  const double* pw = weight.data_ptr<double>();
-  const double* px = x.data_ptr<double>();
-  double* po = out.data_ptr<double>();
-  std::vector<double> kept(static_cast<size_t>(groups * (dim + 1)), 1.0);
+  GroupMotion m;
+  m.n = n;
+  m.dim = dim;
+  m.groups = groups;
+  m.pg = group.data_ptr<int64_t>();
+  m.pw = weight.data_ptr<double>();
+  m.px = x.data_ptr<double>();
+  m.po = out.data_ptr<double>();
+  m.kept.assign(static_cast<size_t>(groups * (dim + 1)), 1.0);
   if (conserved_in.defined()) {
     const auto c = conserved_in.to(torch::kFloat64).contiguous();
-    if (c.numel() != static_cast<int64_t>(kept.size()))
+    if (c.numel() != static_cast<int64_t>(m.kept.size()))
       throw InputError("momentum projection: conserved flags for " + std::to_string(c.numel()) +
                        " values, expected [" + std::to_string(groups) + ", " +
                        std::to_string(dim + 1) + "]");
-    std::copy(c.data_ptr<double>(), c.data_ptr<double>() + kept.size(), kept.begin());
+    std::copy(c.data_ptr<double>(), c.data_ptr<double>() + m.kept.size(), m.kept.begin());
   }
-  const size_t gd = static_cast<size_t>(groups * dim);
-  std::vector<double> total(groups, 0.0), momentum(gd, 0.0), centre(gd, 0.0);
-  for (int64_t i = 0; i < n; ++i) {
-    const int64_t g = pg[i];
-    if (g < 0) continue;
-    if (g >= groups)
-      throw InputError("momentum projection: node " + std::to_string(i) + " is in group " +
-                       std::to_string(g) + " of " + std::to_string(groups));
-    total[g] += pw[i];
-    for (int64_t a = 0; a < dim; ++a) {
-      momentum[g * dim + a] += pw[i] * po[i * dim + a];
-      centre[g * dim + a] += pw[i] * px[i * dim + a];
-    }
-  }
-  for (int64_t g = 0; g < groups; ++g) {
-    total[g] = std::max(total[g], 1e-30);
-    for (int64_t a = 0; a < dim; ++a) {
-      momentum[g * dim + a] = momentum[g * dim + a] / total[g] * kept[g * (dim + 1) + a];
-      centre[g * dim + a] /= total[g];
-    }
-  }
-  for (int64_t i = 0; i < n; ++i)
-    if (pg[i] >= 0)
-      for (int64_t a = 0; a < dim; ++a) po[i * dim + a] -= momentum[pg[i] * dim + a];
+  m.remove_linear();
   if (dim < 2) return out.to(v_in.scalar_type());
   // The angular part, about each group's weighted centre.
-  const size_t g9 = static_cast<size_t>(groups * 9);
-  std::vector<double> torque(groups * 3, 0.0), inertia(g9, 0.0);
-  std::vector<double> r(static_cast<size_t>(n * 3), 0.0);
-  for (int64_t i = 0; i < n; ++i) {
-    const int64_t g = pg[i];
-    if (g < 0) continue;
-    double* ri = &r[i * 3];
-    for (int64_t a = 0; a < dim; ++a) ri[a] = px[i * dim + a] - centre[g * dim + a];
-    const double* oi = po + i * dim;
-    const double m = pw[i];
-    if (dim == 2) {
-      torque[g * 3] += m * (ri[0] * oi[1] - ri[1] * oi[0]);
-      inertia[g * 9] += m * (ri[0] * ri[0] + ri[1] * ri[1]);
-    } else {
-      torque[g * 3 + 0] += m * (ri[1] * oi[2] - ri[2] * oi[1]);
-      torque[g * 3 + 1] += m * (ri[2] * oi[0] - ri[0] * oi[2]);
-      torque[g * 3 + 2] += m * (ri[0] * oi[1] - ri[1] * oi[0]);
-      const double rr = ri[0] * ri[0] + ri[1] * ri[1] + ri[2] * ri[2];
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b)
-          inertia[g * 9 + a * 3 + b] += m * ((a == b ? rr : 0.0) - ri[a] * ri[b]);
-    }
-  }
-  // alpha per group: 2-D torque / inertia; 3-D the pseudo-inverse of the inertia tensor (relative
-  // cut-off 3 eps of the input's type, as torch::linalg::pinv) times the torque.
+  std::vector<double> r, torque, inertia;
+  m.moments(r, torque, inertia);
   const double eps = v_in.scalar_type() == torch::kFloat64
                          ? std::numeric_limits<double>::epsilon()
                          : static_cast<double>(std::numeric_limits<float>::epsilon());
-  std::vector<double> alpha(groups * 3, 0.0);
-  for (int64_t g = 0; g < groups; ++g) {
-    const double spin = kept[g * (dim + 1) + dim];
-    if (dim == 2) {
-      alpha[g * 3] = torque[g * 3] / std::max(inertia[g * 9], 1e-30) * spin;
-      continue;
-    }
-    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> I(&inertia[g * 9]);
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(I, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    const Eigen::Vector3d sigma = svd.singularValues();
-    Eigen::Vector3d inv = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k)
-      if (sigma(k) > 3.0 * eps * sigma(0)) inv(k) = 1.0 / sigma(k);
-    const Eigen::Vector3d t(torque[g * 3], torque[g * 3 + 1], torque[g * 3 + 2]);
-    const Eigen::Vector3d a =
-        svd.matrixV() * inv.asDiagonal() * svd.matrixU().transpose() * t * spin;
-    for (int k = 0; k < 3; ++k) alpha[g * 3 + k] = a(k);
-  }
-  for (int64_t i = 0; i < n; ++i) {
-    const int64_t g = pg[i];
-    if (g < 0) continue;
-    const double* ri = &r[i * 3];
-    const double* al = &alpha[g * 3];
-    double* oi = po + i * dim;
-    if (dim == 2) {
-      oi[0] += al[0] * ri[1];
-      oi[1] -= al[0] * ri[0];
-    } else {
-      oi[0] -= al[1] * ri[2] - al[2] * ri[1];
-      oi[1] -= al[2] * ri[0] - al[0] * ri[2];
-      oi[2] -= al[0] * ri[1] - al[1] * ri[0];
-    }
-  }
+  m.remove_spin(r, m.spin_rates(torque, inertia, eps));
   return out.to(v_in.scalar_type());
 }
 
@@ -504,6 +442,14 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel) {
                              accel);
 }
 
+torch::Tensor project_motion(const Batch& batch, const torch::Tensor& out) {
+  if (batch.num_groups == 0) return out;
+  const int64_t d = batch.cur.size(1);
+  if (out.size(1) == d) return project_momentum(batch, out);
+  return torch::cat(
+      {project_momentum(batch, out.narrow(1, 0, d)), out.narrow(1, d, out.size(1) - d)}, 1);
+}
+
 torch::Tensor rigid_part(const Batch& batch, const torch::Tensor& v) {
   if (!batch.body.defined() || batch.num_bodies == 0) return torch::zeros_like(v);
   const auto ones = torch::ones({v.size(0)}, v.options());
@@ -526,14 +472,6 @@ torch::Tensor LagrangianAdapter::scale_rigid_noise(const FrameState& state,
   auto out = noise.clone();
   out.narrow(1, 0, spec_.dim).sub_((1.0 - rigid_scale) * rigid);
   return out;
-}
-
-void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge) {
-  double radius = 1.5 * mean_edge;
-  const Json background = scene_background(scene_json);
-  if (background.contains("element_size") && background["element_size"].is_number())
-    radius = std::max(radius, 1.5 * background["element_size"].get<double>());
-  spec.contact_radius = radius;
 }
 
 bool is_predicted_node(int32_t node_type, bool public_layout) {
@@ -596,147 +534,197 @@ EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, do
   return radius_pairs(points, radius, &mesh_graph, keep);
 }
 
-Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
-                                    const std::vector<torch::Tensor>& noise) const {
-  Batch b;
+namespace {
+
+// The noise of one graph added to its current positions on the predicted nodes: returns what was
+// added ([N, dim]) and sets `cur` (noisy) and `walk` ([N, (history - 1) * dim]: the older
+// velocities' noise, a random walk back in time; undefined without it).
+torch::Tensor add_noise(const LagrangianSpec& spec, const torch::Tensor& noise,
+                        const torch::Tensor& mask, torch::Tensor& cur, torch::Tensor& walk) {
+  torch::Tensor added = torch::zeros_like(cur);
+  if (!noise.defined()) return added;
+  const int64_t n = cur.size(0);
+  const auto on = mask.unsqueeze(1).to(torch::kFloat32);
+  added = noise.narrow(1, 0, spec.dim) * on;
+  cur = cur + added;
+  const int64_t older = noise.size(1) / spec.dim - 1;
+  if (older > 0 && spec.history > 1) {
+    const int64_t k = std::min<int64_t>(older, spec.history - 1);
+    const auto steps = noise.narrow(1, spec.dim, k * spec.dim).reshape({n, k, spec.dim});
+    walk = (added.unsqueeze(1) -
+            steps.cumsum(1) * on.unsqueeze(2) / std::sqrt(static_cast<double>(spec.history)))
+               .reshape({n, k * spec.dim});
+  }
+  return added;
+}
+
+// The velocity inputs: x_t - x_{t-1} from the (noisy) current positions and, with history, the
+// velocities before from the positions without noise (a trajectory's missing first frames at
+// constant velocity) plus their walk; zero on predicted nodes without the velocity input.
+torch::Tensor velocity_inputs(const LagrangianSpec& spec, const FrameState& s,
+                              const torch::Tensor& cur, const torch::Tensor& walk,
+                              const torch::Tensor& mask) {
+  auto velocity = cur - s.prev;
+  if (spec.history > 1) {
+    std::vector<torch::Tensor> velocities = {velocity};
+    torch::Tensor newer = s.cur, at = s.prev;
+    for (int k = 0; k + 1 < spec.history; ++k) {
+      const torch::Tensor older =
+          k < static_cast<int>(s.older.size()) ? s.older[k] : 2 * at - newer;
+      velocities.push_back(at - older);
+      newer = at;
+      at = older;
+    }
+    velocity = torch::cat(velocities, 1);
+    if (walk.defined()) velocity.narrow(1, spec.dim, walk.size(1)).add_(walk);
+  }
+  if (!spec.velocity_input)
+    velocity = torch::where(mask.unsqueeze(1), torch::zeros_like(velocity), velocity);
+  return velocity;
+}
+
+// A graph's node inputs: velocities, the one-hot node type, the prescribed nodes' next motion
+// (kinematic input) and the clipped distances to the walls.
+torch::Tensor node_inputs(const LagrangianSpec& spec, const FrameState& s, const torch::Tensor& cur,
+                          const torch::Tensor& velocity, const torch::Tensor& mask) {
+  const auto& mesh = *s.mesh;
+  const int64_t n = mesh.num_nodes();
+  auto types = torch::from_blob(const_cast<int32_t*>(mesh.node_type.data()), {n}, torch::kInt32)
+                   .to(torch::kInt64);
+  auto one_hot = torch::one_hot(types.clamp(0, spec.num_node_types - 1), spec.num_node_types)
+                     .to(torch::kFloat32);
+  if (spec.kinematic_input) {
+    if (!s.next.defined())
+      throw std::logic_error("LagrangianAdapter: kinematic input needs FrameState::next");
+    const auto motion = torch::where(mask.unsqueeze(1), torch::zeros_like(s.cur), s.next - s.cur);
+    one_hot = torch::cat({one_hot, motion}, 1);
+  }
+  if (!spec.has_walls()) return torch::cat({velocity, one_hot}, 1);
+  std::vector<torch::Tensor> parts = {velocity, one_hot};
+  const auto ones = torch::ones({n}, torch::kFloat32);
+  for (int a = 0; a < spec.dim; ++a) {
+    const auto x = cur.select(1, a);
+    const double lo = spec.wall_lo[a], hi = spec.wall_hi[a];
+    parts.push_back(std::isnan(lo) ? ones : ((x - lo) / spec.wall_radius).clamp(0.0, 1.0));
+    parts.push_back(std::isnan(hi) ? ones : ((hi - x) / spec.wall_radius).clamp(0.0, 1.0));
+  }
+  for (size_t k = 2; k < parts.size(); ++k) parts[k] = parts[k].unsqueeze(1);
+  return torch::cat(parts, 1);
+}
+
+// The graph's multilevel edges with, when the spec has contact, the contact edges found at `cur`
+// carried to every level (A·Aᶜ·A); adds their level-0 count to `contact_edges`.
+MultilevelTensors graph_with_contact(const LagrangianSpec& spec, const FrameState& s,
+                                     const torch::Tensor& cur, int64_t& contact_edges) {
+  if (!spec.has_contact()) return s.graphs->hierarchy;
+  const int64_t n = s.mesh->num_nodes();
+  const auto x = cur.to(torch::kFloat64).contiguous();
+  RowMatrixXd points = Eigen::Map<const RowMatrixXd>(x.data_ptr<double>(), n, spec.dim);
+  const MultilevelGraph& ml = s.graphs->multilevel;
+  const EdgeList contact = contact_pairs(points, *s.mesh, spec.contact_radius, ml.levels[0].graph);
+  contact_edges += contact.size();
+  std::vector<std::vector<torch::Tensor>> extra;
+  if (spec.multilevel && ml.num_levels() > 1) {
+    const auto levels = enhance_contact_edges_all_levels(ml, contact);
+    for (const auto& level : levels) extra.push_back({edges_to_tensor(level, true)});
+  } else {
+    extra.push_back({edges_to_tensor(contact, true)});
+  }
+  return s.graphs->hierarchy.with_edge_sets(extra);
+}
+
+// The pieces of a batch, one entry per graph, concatenated at the end.
+struct BatchParts {
   std::vector<torch::Tensor> inputs, mesh_pos, world_pos, masks, curs, prevs, noises, groups,
       masses, conserved, bodies;
   std::vector<MultilevelTensors> graphs;
-  graphs.reserve(states.size());
+
+  void into(Batch& b) {
+    b.inputs = torch::cat(inputs, 0);
+    b.positions = {torch::cat(mesh_pos, 0), torch::cat(world_pos, 0)};
+    b.mask = torch::cat(masks, 0);
+    b.cur = torch::cat(curs, 0);
+    b.prev = torch::cat(prevs, 0);
+    if (!noises.empty()) b.noise = torch::cat(noises, 0);
+    b.body = torch::cat(bodies, 0);
+    if (!groups.empty()) {
+      b.group = torch::cat(groups, 0);
+      b.mass = torch::cat(masses, 0);
+      b.conserved = torch::cat(conserved, 0);
+    }
+    if (graphs.size() == 1) {
+      b.graph = std::move(graphs[0]);
+    } else {
+      std::vector<const MultilevelTensors*> pointers;
+      for (const auto& g : graphs) pointers.push_back(&g);
+      b.graph = merge_multilevel_tensors(pointers);
+    }
+  }
+};
+
+}  // namespace
+
+Batch LagrangianAdapter::make_batch(const std::vector<FrameState>& states,
+                                    const std::vector<torch::Tensor>& noise) const {
+  Batch b;
+  BatchParts parts;
+  parts.graphs.reserve(states.size());
   const double inv_scale = 1.0 / spec_.position_scale;
   for (size_t g = 0; g < states.size(); ++g) {
     const FrameState& s = states[g];
     const auto& mesh = *s.mesh;
     const int64_t n = mesh.num_nodes();
-    auto types = torch::from_blob(const_cast<int32_t*>(mesh.node_type.data()), {n}, torch::kInt32)
-                     .to(torch::kInt64);
     std::vector<uint8_t> predicted(n);
     for (int64_t i = 0; i < n; ++i)
       predicted[i] = is_predicted_node(mesh.node_type[i], spec_.public_layout);
     auto mask = torch::from_blob(predicted.data(), {n}, torch::kUInt8).to(torch::kBool);
     torch::Tensor cur = s.cur;
-    torch::Tensor walk;    // [N, (history - 1) * dim]: the older velocities' noise
-    if (!noise.empty()) {  // training: keep what was added, for the target's correction
-      torch::Tensor added = torch::zeros_like(cur);
-      if (g < noise.size() && noise[g].defined()) {
-        const auto on = mask.unsqueeze(1).to(torch::kFloat32);
-        added = noise[g].narrow(1, 0, spec_.dim) * on;
-        cur = cur + added;
-        const int64_t older = noise[g].size(1) / spec_.dim - 1;
-        if (older > 0 && spec_.history > 1) {
-          const int64_t k = std::min<int64_t>(older, spec_.history - 1);
-          const auto steps =
-              noise[g].narrow(1, spec_.dim, k * spec_.dim).reshape({n, k, spec_.dim});
-          walk = (added.unsqueeze(1) -
-                  steps.cumsum(1) * on.unsqueeze(2) / std::sqrt(static_cast<double>(spec_.history)))
-                     .reshape({n, k * spec_.dim});
-        }
-      }
-      noises.push_back(added);
-    }
-    auto velocity = cur - s.prev;
-    if (spec_.history > 1) {  // the velocities before, from the positions without noise
-      std::vector<torch::Tensor> velocities = {velocity};
-      torch::Tensor newer = s.cur, at = s.prev;
-      for (int k = 0; k + 1 < spec_.history; ++k) {
-        const torch::Tensor older =
-            k < static_cast<int>(s.older.size()) ? s.older[k] : 2 * at - newer;
-        velocities.push_back(at - older);
-        newer = at;
-        at = older;
-      }
-      velocity = torch::cat(velocities, 1);
-      if (walk.defined()) velocity.narrow(1, spec_.dim, walk.size(1)).add_(walk);
-    }
-    if (!spec_.velocity_input)
-      velocity = torch::where(mask.unsqueeze(1), torch::zeros_like(velocity), velocity);
-    auto one_hot = torch::one_hot(types.clamp(0, spec_.num_node_types - 1), spec_.num_node_types)
-                       .to(torch::kFloat32);
-    if (spec_.kinematic_input) {
-      if (!s.next.defined())
-        throw std::logic_error("LagrangianAdapter: kinematic input needs FrameState::next");
-      const auto motion = torch::where(mask.unsqueeze(1), torch::zeros_like(s.cur), s.next - s.cur);
-      one_hot = torch::cat({one_hot, motion}, 1);
-    }
-    if (spec_.has_walls()) {
-      std::vector<torch::Tensor> parts = {velocity, one_hot};
-      const auto ones = torch::ones({n}, torch::kFloat32);
-      for (int a = 0; a < spec_.dim; ++a) {
-        const auto x = cur.select(1, a);
-        const double lo = spec_.wall_lo[a], hi = spec_.wall_hi[a];
-        parts.push_back(std::isnan(lo) ? ones : ((x - lo) / spec_.wall_radius).clamp(0.0, 1.0));
-        parts.push_back(std::isnan(hi) ? ones : ((hi - x) / spec_.wall_radius).clamp(0.0, 1.0));
-      }
-      for (size_t k = 2; k < parts.size(); ++k) parts[k] = parts[k].unsqueeze(1);
-      inputs.push_back(torch::cat(parts, 1));
-    } else {
-      inputs.push_back(torch::cat({velocity, one_hot}, 1));
-    }
-    mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()),
-                                        {n, spec_.mesh_dimension()}, torch::kFloat32) *
-                       inv_scale);
-    world_pos.push_back(cur * inv_scale);
-    masks.push_back(mask);
-    {
-      int64_t count = 0;
-      const auto body = predicted_bodies(mesh, spec_.public_layout, &count);
-      bodies.push_back(torch::where(body >= 0, body + b.num_bodies, body));
-      b.num_bodies += count;
-    }
-    curs.push_back(cur);
-    prevs.push_back(s.prev);
+    torch::Tensor walk;
+    if (!noise.empty())  // training: keep what was added, for the target's correction
+      parts.noises.push_back(
+          add_noise(spec_, g < noise.size() ? noise[g] : torch::Tensor(), mask, cur, walk));
+    const auto velocity = velocity_inputs(spec_, s, cur, walk, mask);
+    parts.inputs.push_back(node_inputs(spec_, s, cur, velocity, mask));
+    parts.mesh_pos.push_back(torch::from_blob(const_cast<float*>(mesh.mesh_pos.data()),
+                                              {n, spec_.mesh_dimension()}, torch::kFloat32) *
+                             inv_scale);
+    parts.world_pos.push_back(cur * inv_scale);
+    parts.masks.push_back(mask);
+    int64_t count = 0;
+    const auto body = predicted_bodies(mesh, spec_.public_layout, &count);
+    parts.bodies.push_back(torch::where(body >= 0, body + b.num_bodies, body));
+    b.num_bodies += count;
+    parts.curs.push_back(cur);
+    parts.prevs.push_back(s.prev);
     if (spec_.has_momentum()) {
       MomentumGroups found = momentum_groups(spec_, mesh, cur);
       for (auto& v : found.group)
         if (v >= 0) v += b.num_groups;
       b.num_groups += found.count;
-      groups.push_back(torch::from_blob(found.group.data(), {n}, torch::kInt64).clone());
-      conserved.push_back(
+      parts.groups.push_back(torch::from_blob(found.group.data(), {n}, torch::kInt64).clone());
+      parts.conserved.push_back(
           torch::from_blob(found.conserved.data(), {found.count, spec_.dim + 1}, torch::kFloat32)
               .clone());
       std::vector<float> mass = lumped_masses(mesh);
-      masses.push_back(torch::from_blob(mass.data(), {n}, torch::kFloat32).clone());
+      parts.masses.push_back(torch::from_blob(mass.data(), {n}, torch::kFloat32).clone());
     }
-
-    if (spec_.has_contact()) {
-      const auto x = cur.to(torch::kFloat64).contiguous();
-      RowMatrixXd points = Eigen::Map<const RowMatrixXd>(x.data_ptr<double>(), n, spec_.dim);
-      const MultilevelGraph& ml = s.graphs->multilevel;
-      const EdgeList contact =
-          contact_pairs(points, mesh, spec_.contact_radius, ml.levels[0].graph);
-      b.contact_edges += contact.size();
-      std::vector<std::vector<torch::Tensor>> extra;
-      if (spec_.multilevel && ml.num_levels() > 1) {
-        const auto levels = enhance_contact_edges_all_levels(ml, contact);
-        for (const auto& level : levels) extra.push_back({edges_to_tensor(level, true)});
-      } else {
-        extra.push_back({edges_to_tensor(contact, true)});
-      }
-      graphs.push_back(s.graphs->hierarchy.with_edge_sets(extra));
-    } else {
-      graphs.push_back(s.graphs->hierarchy);
-    }
+    parts.graphs.push_back(graph_with_contact(spec_, s, cur, b.contact_edges));
   }
-  b.inputs = torch::cat(inputs, 0);
-  b.positions = {torch::cat(mesh_pos, 0), torch::cat(world_pos, 0)};
-  b.mask = torch::cat(masks, 0);
-  b.cur = torch::cat(curs, 0);
-  b.prev = torch::cat(prevs, 0);
-  if (!noises.empty()) b.noise = torch::cat(noises, 0);
-  b.body = torch::cat(bodies, 0);
-  if (!groups.empty()) {
-    b.group = torch::cat(groups, 0);
-    b.mass = torch::cat(masses, 0);
-    b.conserved = torch::cat(conserved, 0);
-  }
-  if (graphs.size() == 1) {
-    b.graph = std::move(graphs[0]);
-  } else {
-    std::vector<const MultilevelTensors*> pointers;
-    for (const auto& g : graphs) pointers.push_back(&g);
-    b.graph = merge_multilevel_tensors(pointers);
-  }
+  parts.into(b);
+  b.rigid_part = &bsms::rigid_part;
+  if (b.num_groups > 0) b.project = &project_motion;
   return b;
+}
+
+ModelShape LagrangianAdapter::model_shape() const {
+  ModelShape s;
+  s.input_size = spec_.input_size();
+  s.output_size = spec_.output_size();
+  s.position_dims = {spec_.mesh_dimension(), spec_.dim};      // mesh X, world x
+  s.edge_set_fields = {{0, 1}};                               // mesh edges: both offsets
+  if (spec_.has_contact()) s.edge_set_fields.push_back({1});  // contact edges: world offsets
+  if (spec_.strain_scale > 0) s.edge_set_stretch = {EdgeStretch{0, 1, 1.0 / spec_.strain_scale}};
+  return s;
 }
 
 torch::Tensor LagrangianAdapter::target(const Batch& batch, const torch::Tensor& next,

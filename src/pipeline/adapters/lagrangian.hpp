@@ -1,4 +1,4 @@
-// The Lagrangian adapter (STYLE.md 8): turns dataset frames into model inputs and a prediction
+// The Lagrangian adapter (adapter.hpp): turns dataset frames into model inputs and a prediction
 // into the next state. Inputs per node: velocity x_t - x_{t-1}, a one-hot node type and, in a
 // walled box, the clipped distances to the walls; positions:
 // mesh X and world x (both divided by `position_scale`); edge sets: mesh edges (X and x offsets)
@@ -12,9 +12,14 @@
 
 #include <torch/types.h>
 
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "core/config.hpp"
+#include "pipeline/adapters/adapter.hpp"
+#include "pipeline/adapters/batch.hpp"
+#include "pipeline/adapters/scene_symmetry.hpp"
 #include "pipeline/graphs/graph_store.hpp"
 
 namespace bsms {
@@ -42,7 +47,7 @@ struct LagrangianSpec {
   double position_scale = 1.0;  // m; positions are divided by it (mean mesh edge length)
   double contact_radius = 0.0;  // m; 0 = the model has no contact edge set
   // RMS strain of the training data's mesh edges: mesh edges get the strain channel divided by
-  // it (0 = no strain channel, as in runs trained before it existed).
+  // it (0 = no strain channel: data that does not deform, or features.strain "off").
   double strain_scale = 0.0;
   bool public_layout = false;  // node-type codes of public MeshGraphNets data
   bool multilevel = true;      // false: level 0 only (MeshGraphNets)
@@ -55,12 +60,12 @@ struct LagrangianSpec {
   // closer than momentum_radius (two kernel supports: they share grid nodes) form one group; a
   // group whose nodes are all predicted and farther than momentum_wall_range from every wall
   // keeps its linear and angular momentum, so the model's acceleration there is projected onto
-  // the momentum-conserving subspace (project_momentum). 0 = off (runs trained before it).
+  // the momentum-conserving subspace (project_momentum). 0 = off.
   double momentum_radius = 0.0;
   double momentum_wall_range = 0.0;
   // The walls are slip or roller (they push only along their normal): a group near walls of
   // some axes still keeps its linear momentum along the others (false: such a group is left
-  // alone, as in runs trained before it).
+  // alone; features.momentum "free").
   bool momentum_slip_walls = false;
 
   bool has_walls() const { return wall_radius > 0 && static_cast<int>(wall_lo.size()) == dim; }
@@ -76,24 +81,6 @@ struct LagrangianSpec {
 Json to_json(const LagrangianSpec& spec);
 LagrangianSpec lagrangian_spec_from_json(const Json& json, const std::string& file);
 
-// The background object of a dataset's scene JSON (a family file with a "scene" object, or a
-// scene); an empty object when there is none or the text is not JSON. `scene_out`: the scene.
-Json scene_background(const std::string& scene_json, Json* scene_out = nullptr);
-
-// Contact radius "auto": the range at which two bodies of the scene's solver already interact,
-// 1.5 background cells (the kernel support; `background.element_size` of the scene JSON), and at
-// least 1.5 mean mesh edges (public data without a background).
-void resolve_contact_radius(LagrangianSpec& spec, const std::string& scene_json, double mean_edge);
-
-// Momentum "auto", from the scene alone: on when the dataset's scene (a family file's "scene"
-// or a scene) has no gravity, a "box" background with element_size h whose only boundaries are
-// named box sides (walls), and the spec has those walls: then momentum_radius = 3 h (two
-// particles within two kernel supports of 1.5 h share grid nodes) and momentum_wall_range = 2 h
-// (the kernel support plus a cell of travel). With `at_walls`, momentum_slip_walls is set when
-// every boundary is "slip" or "roller". Leaves momentum off otherwise and returns why.
-std::string resolve_momentum(LagrangianSpec& spec, const std::string& scene_json,
-                             bool at_walls = true);
-
 // Contact candidates: pairs closer than `radius` in `points` [N, dim] that the mesh does not join
 // and that belong to different bodies or mesh components (public data has no body ids), or to one
 // body but lie ≥ 4 radii apart in mesh_pos (self-contact). Both directions, sorted like
@@ -103,16 +90,6 @@ EdgeList contact_pairs(const RowMatrixXd& points, const TrajectoryMesh& mesh, do
 
 // Nodes whose next position the model predicts (others follow their prescribed path).
 bool is_predicted_node(int32_t node_type, bool public_layout);
-
-// Sets spec.wall_lo/wall_hi/wall_radius from a dataset's scene JSON (a family file with a "scene"
-// object, or a scene): a "box" background whose sides are named in "boundaries" (left/right,
-// bottom/top, back/front). Leaves the spec without walls otherwise.
-void resolve_walls(LagrangianSpec& spec, const std::string& scene_json, double radius);
-
-// A trained spec with wall inputs, moved to another scene (e.g. a larger box for a zero-shot
-// rollout): the walls of that scene with the trained radius; a scene without walls reads as "far
-// from every wall", so the input size never changes. A spec without walls is returned as is.
-LagrangianSpec walls_for_scene(LagrangianSpec spec, const std::string& scene_json);
 
 // One graph's state at frame t.
 struct FrameState {
@@ -126,31 +103,6 @@ struct FrameState {
   // Positions before t-1 for spec.history > 1: older[0] at t-2, older[1] at t-3, ... Missing
   // ones (a trajectory's first frames) are filled at constant velocity.
   std::vector<torch::Tensor> older;
-};
-
-// A block-diagonal batch of states, ready for the model.
-struct Batch {
-  torch::Tensor inputs;                  // [N, input_size] raw (unnormalised) node features
-  std::vector<torch::Tensor> positions;  // {X, x} / position_scale, [N, dim] each
-  torch::Tensor mask;                    // [N] bool: predicted nodes (the loss covers them)
-  torch::Tensor cur, prev;               // [N, dim] positions used for the inputs (noise added)
-  // [N, dim] how far cur is from the truth: the noise added to it, plus the drift of a
-  // pushed-forward training sample (undefined without noise)
-  torch::Tensor noise;
-  MultilevelTensors graph;
-  int64_t contact_edges = 0;  // level-0 contact edges found
-  // With spec.has_momentum(): each node's group (-1: none; group ids are unique in the batch),
-  // its lumped mass (reference cell volume / (dim + 1) per vertex; a uniform density cancels in
-  // the projection), and which momenta each group keeps (MomentumGroups::conserved; undefined:
-  // all of them).
-  torch::Tensor group;      // [N] int64
-  torch::Tensor mass;       // [N] float32
-  torch::Tensor conserved;  // [num_groups, dim + 1] float32, 1 = kept
-  int64_t num_groups = 0;
-  // Each predicted node's body (mesh body_id, unique in the batch; -1: not predicted), for the
-  // loss's rigid part (FeatureConfig::rigid_loss_weight).
-  torch::Tensor body;  // [N] int64
-  int64_t num_bodies = 0;
 };
 
 // The momentum groups of one state (see LagrangianSpec::momentum_radius). A group with a
@@ -175,6 +127,9 @@ std::vector<float> lumped_masses(const TrajectoryMesh& mesh);
 // mass-weighted orthogonal projection onto accelerations that keep those momenta.
 // Differentiable; identity when the batch has no group.
 torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel);
+// project_momentum on a model output's motion channels (the first dim); further channels
+// (stress) as they are. The Batch::project of a batch with momentum groups.
+torch::Tensor project_motion(const Batch& batch, const torch::Tensor& output);
 // The rigid part of `v` [N, dim] on each body of the batch (Batch::body; nodes weighted equally,
 // positions Batch::cur): per body, the mean of v plus the rigid rotation about the body's centroid
 // that fits v best (2-D and 3-D), i.e. the orthogonal projection onto rigid motions. Zero on
@@ -182,10 +137,27 @@ torch::Tensor project_momentum(const Batch& batch, const torch::Tensor& accel);
 // of, step by step. Differentiable.
 torch::Tensor rigid_part(const Batch& batch, const torch::Tensor& v);
 
-class LagrangianAdapter {
+class LagrangianAdapter : public DomainAdapter {
  public:
-  explicit LagrangianAdapter(LagrangianSpec spec) : spec_(spec) {}
+  // `augment`: features.augment "symmetries", the data's scene symmetries (identity first), one
+  // of which maps each noisy training sample; empty when off.
+  explicit LagrangianAdapter(LagrangianSpec spec, std::vector<BoxSymmetry> augment = {})
+      : spec_(std::move(spec)), augment_(std::move(augment)) {}
   const LagrangianSpec& spec() const { return spec_; }
+
+  std::string kind() const override { return "lagrangian"; }
+  ModelShape model_shape() const override;
+  Json spec_json() const override { return to_json(spec_); }
+  // Predicting t+1 from t-1 and t (and the history before). With a predictor and
+  // config.features.pushforward = u > 0, sample (trajectory, t) starts from the truth at frames
+  // t-1-u' and t-u' (u' = min(u, t-1)) and is rolled out by the predictor to frame t; the noise
+  // is added to that state and the target is the truth's next frame, corrected by
+  // (1 - noise_gamma) times noise plus drift (Batch::noise), or with pushforward_target
+  // "acceleration" the frame's own noisy target, as if the state had not drifted. With augment,
+  // each noisy sample (state, truth and mesh positions) is then mapped by one of its symmetries,
+  // drawn from the sample's generator after its noise. With spec.stress the target gets the
+  // next frame's stress as a last column.
+  TrainBatch make_train_batch(const SampleRequest& request) const override;
 
   // `noise[g]` (optional, [N_g, dim]) is added to graph g's current positions on predicted nodes.
   // With spec.history > 1 it may be [N_g, history * dim]: the columns after the first dim are
@@ -215,6 +187,7 @@ class LagrangianAdapter {
 
  private:
   LagrangianSpec spec_;
+  std::vector<BoxSymmetry> augment_;
 };
 
 }  // namespace bsms

@@ -10,40 +10,6 @@
 
 namespace bsms {
 
-namespace {
-
-// project_momentum on the motion channels (the first dim); further output channels (stress) as
-// they are.
-torch::Tensor project_motion(const Batch& batch, const torch::Tensor& out) {
-  if (batch.num_groups == 0) return out;
-  const int64_t d = batch.cur.size(1);
-  if (out.size(1) == d) return project_momentum(batch, out);
-  return torch::cat(
-      {project_momentum(batch, out.narrow(1, 0, d)), out.narrow(1, d, out.size(1) - d)}, 1);
-}
-
-}  // namespace
-
-ModelShape model_shape(const LagrangianSpec& spec) {
-  ModelShape s;
-  s.input_size = spec.input_size();
-  s.output_size = spec.output_size();
-  s.position_dims = {spec.mesh_dimension(), spec.dim};       // mesh X, world x
-  s.edge_set_fields = {{0, 1}};                              // mesh edges: both offsets
-  if (spec.has_contact()) s.edge_set_fields.push_back({1});  // contact edges: world offsets
-  if (spec.strain_scale > 0) s.edge_set_stretch = {EdgeStretch{0, 1, 1.0 / spec.strain_scale}};
-  return s;
-}
-
-ModelShape model_shape(const EulerianSpec& spec) {
-  ModelShape s;
-  s.input_size = spec.input_size();
-  s.output_size = spec.output_size();
-  s.position_dims = {spec.dim};
-  s.edge_set_fields = {{0}};
-  return s;
-}
-
 LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& config, int levels) {
   GraphModelOptions o;
   o.input_size = shape.input_size;
@@ -58,7 +24,7 @@ LearnedSimulator::LearnedSimulator(const ModelShape& shape, const ModelConfig& c
   o.edge_normalizer = config.edge_normalizer == "on";
   bf16_ = config.precision == "bf16";
   if (config.type == "bsms") {
-    o.level_blocks = config.level_blocks;
+    o.mp_per_level_list = config.mp_per_level_list;
     model_ = std::make_shared<BsmsGnn>(o);
   } else {
     model_ = std::make_shared<MeshGraphNets>(o);
@@ -91,19 +57,19 @@ torch::Tensor LearnedSimulator::loss(const Batch& batch, const torch::Tensor& ta
                                      double rigid_weight) {
   auto prediction = forward_normalized(batch);
   auto goal = target;
-  if (batch.num_groups > 0) {
-    // Free groups: compare the momentum-conserving parts (the group-wide part of the training
-    // noise is not the model's to undo).
-    prediction = output_norm_->normalize(project_motion(batch, output_norm_->inverse(prediction)));
-    goal = project_motion(batch, target);
+  if (batch.project) {
+    // Compare what the physics allows (Lagrangian: the momentum-conserving parts; the group-wide
+    // part of the training noise is not the model's to undo).
+    prediction = output_norm_->normalize(batch.project(batch, output_norm_->inverse(prediction)));
+    goal = batch.project(batch, target);
   }
   const auto diff = prediction - output_norm_->normalize(goal);
   auto error = diff.pow(2).sum(1);
-  if (rigid_weight > 0) {
+  if (rigid_weight > 0 && batch.rigid_part) {
     // The rigid part of the raw error, measured in the normalised units of the loss.
     const int64_t d = batch.cur.size(1);  // the motion channels (not a stress output)
     const auto scale = output_norm_->std().to(diff.dtype()).narrow(0, 0, d);
-    const auto rigid = rigid_part(batch, diff.narrow(1, 0, d) * scale) / scale;
+    const auto rigid = batch.rigid_part(batch, diff.narrow(1, 0, d) * scale) / scale;
     error = error + rigid_weight * rigid.pow(2).sum(1);
   }
   return error.index({batch.mask}).mean();
@@ -135,7 +101,8 @@ torch::Tensor LearnedSimulator::zero_prediction_loss(const Batch& batch,
 }
 
 torch::Tensor LearnedSimulator::predict(const Batch& batch) {
-  return project_motion(batch, output_norm_->inverse(forward_normalized(batch)));
+  const auto out = output_norm_->inverse(forward_normalized(batch));
+  return batch.project ? batch.project(batch, out) : out;
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,

@@ -11,38 +11,21 @@
 #include "models/checkpoint.hpp"
 #include "models/layers.hpp"
 #include "models/networks.hpp"
-#include "pipeline/adapters/eulerian.hpp"
-#include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/adapters/adapter.hpp"
 #include "pipeline/runs/train_config.hpp"
 
 namespace bsms {
-
-// What the graph model sees and returns, as an adapter defines it.
-struct ModelShape {
-  int input_size = 0;
-  int output_size = 0;
-  std::vector<int64_t> position_dims;                 // per position field
-  std::vector<std::vector<int64_t>> edge_set_fields;  // per edge set: the position fields used
-  std::vector<EdgeStretch> edge_set_stretch;          // per edge set (optional)
-};
-// Lagrangian: mesh X and world x; mesh edges with both offsets (and the strain channel), contact
-// edges with world offsets.
-ModelShape model_shape(const LagrangianSpec& spec);
-// Eulerian: mesh X only, on the mesh edges.
-ModelShape model_shape(const EulerianSpec& spec);
 
 class LearnedSimulator : public torch::nn::Module {
  public:
   // `levels`: the level count of every graph the BSMS model sees (1 for MeshGraphNets).
   LearnedSimulator(const ModelShape& shape, const ModelConfig& model, int levels);
-  LearnedSimulator(const LagrangianSpec& spec, const ModelConfig& model, int levels)
-      : LearnedSimulator(model_shape(spec), model, levels) {}
 
   // Mean over predicted nodes of the squared error in normalised target space. `target` is the
   // raw acceleration [N, dim]; the normalizers are settled beforehand (accumulate_statistics).
-  // On the batch's free groups both sides are projected first (project_momentum). With
-  // `rigid_weight` w > 0 the rigid part of each body's error (rigid_part, taken in raw units and
-  // normalised back) counts 1 + w times.
+  // With the batch's projection (Batch::project) both sides are projected first. With
+  // `rigid_weight` w > 0 the rigid part of each body's error (Batch::rigid_part, taken in raw
+  // units and normalised back) counts 1 + w times.
   torch::Tensor loss(const Batch& batch, const torch::Tensor& target, double rigid_weight = 0.0);
   // Adds the batch's inputs and targets (of the predicted nodes, or with `all_nodes` of every
   // node, as MeshGraphNets' reference) and the model's edge features to the normalizer
@@ -52,9 +35,7 @@ class LearnedSimulator : public torch::nn::Module {
   // The loss of predicting zero acceleration, in the same normalised units as loss(): the
   // reference a model must beat (no gradient).
   torch::Tensor zero_prediction_loss(const Batch& batch, const torch::Tensor& target) const;
-  // Raw output (Lagrangian: acceleration or velocity [N, dim], then the stress [N, 1] with
-  // LagrangianSpec::stress) predicted for the batch, its motion momentum-conserving on the free
-  // groups.
+  // Raw output predicted for the batch [N, output_size], through the batch's projection.
   torch::Tensor predict(const Batch& batch);
 
   // Both normalizers' sums (Normalizer::sums), to be added up over data-parallel ranks.

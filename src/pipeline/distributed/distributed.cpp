@@ -1,11 +1,6 @@
 #include "pipeline/distributed/distributed.hpp"
 
-#include <arpa/inet.h>
 #include <glog/logging.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
 #include <unistd.h>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
@@ -14,21 +9,16 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
-#include <cstring>
 #include <fstream>
-#include <iostream>
 #include <map>
 #include <sstream>
-#include <thread>
 
 #include "core/error.hpp"
 #include "core/runtime.hpp"
 
 namespace bsms {
-namespace {
 
-// An integer environment variable, or `fallback` when unset.
-int64_t env_int(const char* name, int64_t fallback, int64_t lo, int64_t hi) {
+int64_t environment_int(const char* name, int64_t fallback, int64_t lo, int64_t hi) {
   const char* v = std::getenv(name);
   if (!v) return fallback;
   char* end = nullptr;
@@ -41,10 +31,12 @@ int64_t env_int(const char* name, int64_t fallback, int64_t lo, int64_t hi) {
   return x;
 }
 
-std::string env_string(const char* name, const std::string& fallback) {
+std::string environment_string(const char* name, const std::string& fallback) {
   const char* v = std::getenv(name);
   return v && *v ? std::string(v) : fallback;
 }
+
+namespace {
 
 std::string first_line(const std::string& s) {
   std::string line = s.substr(0, s.find('\n'));
@@ -95,20 +87,20 @@ DistributedSettings distributed_from_environment(double timeout_s) {
   s.timeout_s = timeout_s;
   if (!std::getenv("WORLD_SIZE")) {
     for (const char* name : {"RANK", "LOCAL_RANK"})
-      if (std::getenv(name) && env_int(name, 0, 0, 0) != 0)
+      if (std::getenv(name) && environment_int(name, 0, 0, 0) != 0)
         throw InputError(std::string("environment variable ") + name +
                          " is set but WORLD_SIZE is not: set both (torchrun's conventions) or "
                          "neither");
     return s;
   }
-  s.world = static_cast<int>(env_int("WORLD_SIZE", 1, 1, 65536));
+  s.world = static_cast<int>(environment_int("WORLD_SIZE", 1, 1, 65536));
   if (s.world > 1 && !std::getenv("RANK"))
     throw InputError("environment variable WORLD_SIZE=" + std::to_string(s.world) +
                      ": RANK is not set (each process needs its rank in [0, WORLD_SIZE))");
-  s.rank = static_cast<int>(env_int("RANK", 0, 0, s.world - 1));
-  s.local_rank = static_cast<int>(env_int("LOCAL_RANK", s.rank, 0, s.world - 1));
-  s.master_addr = env_string("MASTER_ADDR", "127.0.0.1");
-  s.master_port = static_cast<int>(env_int("MASTER_PORT", 29500, 1, 65535));
+  s.rank = static_cast<int>(environment_int("RANK", 0, 0, s.world - 1));
+  s.local_rank = static_cast<int>(environment_int("LOCAL_RANK", s.rank, 0, s.world - 1));
+  s.master_addr = environment_string("MASTER_ADDR", "127.0.0.1");
+  s.master_port = static_cast<int>(environment_int("MASTER_PORT", 29500, 1, 65535));
   return s;
 }
 
@@ -303,157 +295,6 @@ std::string Communicator::share(const std::string& key, const std::string& bytes
     throw DistributedError(describe_failure(settings_, impl_->hosts, impl_->pids, 0,
                                             "receiving '" + key + "' from rank 0", e.what()));
   }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Local launcher
-
-namespace {
-
-std::vector<pid_t> g_children;  // for the signal forwarder
-
-void forward_signal(int sig) {
-  for (pid_t p : g_children)
-    if (p > 0) ::kill(p, sig);
-}
-
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) throw IoError("cannot open a socket to find a free port");
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  addr.sin_port = 0;
-  socklen_t len = sizeof addr;
-  int port = 0;
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0 &&
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0)
-    port = ntohs(addr.sin_port);
-  ::close(fd);
-  if (port == 0) throw IoError("cannot find a free port on 127.0.0.1 (set MASTER_PORT)");
-  return port;
-}
-
-std::string exit_text(int status) {
-  if (WIFSIGNALED(status))
-    return std::string("was killed by signal ") + std::to_string(WTERMSIG(status)) + " (" +
-           strsignal(WTERMSIG(status)) + ")";
-  return "exited with code " + std::to_string(WEXITSTATUS(status));
-}
-
-}  // namespace
-
-int launch_local_ranks(const std::vector<std::string>& argv, int nproc, double grace_s) {
-  if (nproc < 1 || nproc > 1024)
-    throw InputError("--nproc " + std::to_string(nproc) + ": expected 1 to 1024");
-  if (std::getenv("RANK"))
-    throw InputError(
-        "--nproc: environment variable RANK is set (this process is already one rank of a "
-        "launched group, e.g. by torchrun); drop --nproc, or unset RANK and set NODE_RANK");
-  const int world = static_cast<int>(env_int("WORLD_SIZE", nproc, 1, 65536));
-  const int node = static_cast<int>(env_int("NODE_RANK", 0, 0, 65535));
-  if (static_cast<int64_t>(node + 1) * nproc > world)
-    throw InputError("WORLD_SIZE=" + std::to_string(world) + ", NODE_RANK=" + std::to_string(node) +
-                     ", --nproc " + std::to_string(nproc) + ": this machine's ranks " +
-                     std::to_string(node * nproc) + ".." + std::to_string((node + 1) * nproc - 1) +
-                     " do not fit (WORLD_SIZE must be at least (NODE_RANK + 1) x nproc)");
-  const std::string addr = env_string("MASTER_ADDR", "127.0.0.1");
-  int port = 0;
-  if (std::getenv("MASTER_PORT")) {
-    port = static_cast<int>(env_int("MASTER_PORT", 29500, 1, 65535));
-  } else {
-    if (world != nproc)
-      throw InputError("MASTER_PORT is not set: a run across machines (WORLD_SIZE=" +
-                       std::to_string(world) + " > --nproc " + std::to_string(nproc) +
-                       ") needs the same MASTER_ADDR and MASTER_PORT on every machine");
-    port = free_port();
-  }
-
-  std::vector<char*> args;
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  std::cout.flush();
-  std::cerr.flush();
-  g_children.assign(nproc, 0);
-  struct sigaction forward {};
-  forward.sa_handler = forward_signal;
-  sigemptyset(&forward.sa_mask);
-  struct sigaction old_int {
-  }, old_term{};
-  sigaction(SIGINT, &forward, &old_int);
-  sigaction(SIGTERM, &forward, &old_term);
-  for (int i = 0; i < nproc; ++i) {
-    const pid_t pid = ::fork();
-    if (pid < 0) {
-      forward_signal(SIGKILL);
-      throw IoError("cannot start rank " + std::to_string(node * nproc + i) +
-                    " (fork: " + std::strerror(errno) + ")");
-    }
-    if (pid == 0) {
-      setenv("WORLD_SIZE", std::to_string(world).c_str(), 1);
-      setenv("RANK", std::to_string(node * nproc + i).c_str(), 1);
-      setenv("LOCAL_RANK", std::to_string(i).c_str(), 1);
-      setenv("LOCAL_WORLD_SIZE", std::to_string(nproc).c_str(), 1);
-      setenv("MASTER_ADDR", addr.c_str(), 1);
-      setenv("MASTER_PORT", std::to_string(port).c_str(), 1);
-      setenv("BSMS_LAUNCHED", "1", 1);
-      ::execv("/proc/self/exe", args.data());
-      std::fprintf(stderr, "bsms: cannot start rank %d: %s\n", node * nproc + i,
-                   std::strerror(errno));
-      ::_exit(127);
-    }
-    g_children[i] = pid;
-  }
-
-  int code = 0;
-  int remaining = nproc;
-  bool failed = false;
-  auto deadline = std::chrono::steady_clock::time_point::max();
-  while (remaining > 0) {
-    int status = 0;
-    const pid_t pid = ::waitpid(-1, &status, failed ? WNOHANG : 0);
-    if (pid < 0 && errno == EINTR) continue;
-    if (pid < 0) break;
-    if (pid == 0) {  // failed: the others are stopping
-      if (std::chrono::steady_clock::now() > deadline) {
-        for (int i = 0; i < nproc; ++i)
-          if (g_children[i] > 0) {
-            std::cerr << "bsms train: rank " << node * nproc + i << " did not stop within "
-                      << grace_s << " s; killing it\n";
-            ::kill(g_children[i], SIGKILL);
-          }
-        deadline = std::chrono::steady_clock::time_point::max();
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-      continue;
-    }
-    const auto it = std::find(g_children.begin(), g_children.end(), pid);
-    if (it == g_children.end()) continue;
-    const int local = static_cast<int>(it - g_children.begin());
-    *it = 0;
-    --remaining;
-    const bool ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-    if (!ok && !failed) {
-      failed = true;
-      code = WIFEXITED(status) ? WEXITSTATUS(status) : 5;
-      // Bad input was reported by the rank itself, in one line, before any training: the
-      // others (waiting for it at the rendezvous) are stopped at once.
-      const bool bad_input = WIFEXITED(status) && WEXITSTATUS(status) == 2;
-      if (bad_input) forward_signal(SIGTERM);
-      if (!bad_input)
-        std::cerr << "bsms train: rank " << node * nproc + local << " (pid " << pid << ") "
-                  << exit_text(status)
-                  << (remaining ? "; the other ranks stop (or are killed after " +
-                                      std::to_string(static_cast<int64_t>(grace_s)) + " s)"
-                                : std::string())
-                  << "\n";
-      deadline = std::chrono::steady_clock::now() +
-                 std::chrono::milliseconds(static_cast<int64_t>(grace_s * 1000));
-    }
-  }
-  sigaction(SIGINT, &old_int, nullptr);
-  sigaction(SIGTERM, &old_term, nullptr);
-  return code;
 }
 
 }  // namespace bsms

@@ -1,7 +1,7 @@
 // Data-parallel training across processes and machines on PyTorch's distributed engine: c10d
 // with the Gloo backend, rendezvous through a TCPStore served by rank 0. Ranks find each other by
 // torchrun's environment variables (MASTER_ADDR, MASTER_PORT, WORLD_SIZE, RANK, LOCAL_RANK);
-// `bsms train --nproc N` sets them for N local ranks (launch_local_ranks).
+// `bsms train --nproc N` sets them for N local ranks (pipeline/distributed/launcher.hpp).
 #pragma once
 
 #include <torch/types.h>
@@ -22,6 +22,12 @@ struct DistributedSettings {
   double timeout_s = 300.0;  // a rank silent this long (dead or hung) stops the others
   bool enabled() const { return world > 1; }
 };
+
+// torchrun's variables, read by the ranks and by the launcher: an integer in [lo, hi], or
+// `fallback` when unset (InputError naming the variable otherwise); a string, or `fallback` when
+// unset or empty.
+int64_t environment_int(const char* name, int64_t fallback, int64_t lo, int64_t hi);
+std::string environment_string(const char* name, const std::string& fallback);
 
 // The settings of this process from the environment (torchrun's variables); world 1 when
 // WORLD_SIZE is unset. A malformed or contradictory value is an InputError naming the variable.
@@ -65,13 +71,5 @@ class Communicator {
   DistributedSettings settings_;
   std::unique_ptr<Impl> impl_;
 };
-
-// `bsms train --nproc N`: runs this executable (argv, with the launcher's options removed by the
-// caller) as N ranks with torchrun's variables set: ranks NODE_RANK*N .. NODE_RANK*N+N-1 of
-// WORLD_SIZE (default N), MASTER_PORT a free port when unset on a single machine. Waits for all;
-// when one fails, the others get `grace_s` to stop by themselves before they are killed. Returns
-// the exit code: 0, or the first failing rank's code (5 for a rank killed by a signal), after one
-// line that names that rank.
-int launch_local_ranks(const std::vector<std::string>& argv, int nproc, double grace_s);
 
 }  // namespace bsms

@@ -40,6 +40,28 @@ std::vector<RunInfo> run_infos(const HardCaseRequest& request) {
   return runs;
 }
 
+namespace {
+
+// The first character of trajectory parameters written as a JSON object.
+constexpr char kJsonObjectStart = '{';
+
+// The generator redraws a scene the solver stopped on; `attempt` > 0 in the trajectory's
+// parameters records that. Parameters that do not parse count as drawn once: the statistic is
+// informative only.
+bool redrawn_by_solver(const std::string& parameters, const std::string& location) {
+  if (parameters.empty() || parameters.front() != kJsonObjectStart) return false;
+  Json j;
+  try {
+    j = parse_json_text(parameters, location + ": trajectory parameters");
+  } catch (const InputError&) {
+    return false;
+  }
+  const Json attempt = j.is_object() ? j.value("attempt", Json(0)) : Json(0);
+  return attempt.is_number() && attempt.get<double>() > 0;
+}
+
+}  // namespace
+
 SplitStats split_stats(const std::string& dir, const std::string& split) {
   const Dataset data = Dataset::open_split(dir, split);
   SplitStats s;
@@ -53,18 +75,7 @@ SplitStats split_stats(const std::string& dir, const std::string& split) {
     s.max_nodes = std::max(s.max_nodes, n);
     s.mean_nodes += static_cast<double>(n) / static_cast<double>(s.trajectories);
     s.min_frames = std::min(s.min_frames, data.num_frames(t));
-    // The generator redraws a scene the solver stopped on; `attempt` > 0 records that.
-    const std::string p = data.parameters(t);
-    if (!p.empty() && p.front() == '{') {
-      Json j;
-      try {
-        j = parse_json_text(p, data.location() + ": trajectory parameters");
-      } catch (const InputError&) {
-        continue;  // counted as drawn once: the statistic is informative only
-      }
-      const Json attempt = j.is_object() ? j.value("attempt", Json(0)) : Json(0);
-      if (attempt.is_number() && attempt.get<double>() > 0) ++s.redrawn;
-    }
+    if (redrawn_by_solver(data.parameters(t), data.location())) ++s.redrawn;
   }
   return s;
 }

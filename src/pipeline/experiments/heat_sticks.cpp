@@ -18,12 +18,11 @@
 #include "core/runtime.hpp"
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
-#include "models/proximity_multilevel.hpp"
-#include "pipeline/train/fit.hpp"
 #include "pipeline/report/number_format.hpp"
 #include "pipeline/report/plotting.hpp"
 #include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_config.hpp"
+#include "pipeline/train/fit.hpp"
 #include "preprocess/multilevel_graph.hpp"
 
 namespace bsms {
@@ -130,6 +129,194 @@ struct TestCase {
   std::array<std::vector<float>, 2> alone;  // per model, [2 * nodes], each stick on its own
 };
 
+// The test: two sticks head to tail, A on [0, 1] and B on [1 + gap, 2 + gap], and each alone.
+struct TestSticks {
+  double dx = 0.0, gap = 0.0, b_start = 0.0, gap_mid = 0.0;
+  Sticks pair;
+  std::array<Sticks, 2> alone;
+  std::vector<char> near_gap;  // [2 * nodes] 1 for nodes within kNearGapDx of the gap
+};
+
+TestSticks make_test_sticks(const HeatSticksOptions& o) {
+  TestSticks t;
+  t.dx = 1.0 / static_cast<double>(o.nodes - 1);
+  t.gap = o.gap * t.dx;
+  t.b_start = 1.0 + t.gap;
+  t.gap_mid = 1.0 + 0.5 * t.gap;
+  t.pair = make_sticks({0.0, t.b_start}, o.nodes);
+  t.alone = {make_sticks({0.0}, o.nodes), make_sticks({t.b_start}, o.nodes)};
+  t.near_gap.resize(t.pair.x.size());
+  for (size_t i = 0; i < t.pair.x.size(); ++i) {
+    const double distance = t.pair.stick[i] == 0 ? 1.0 - t.pair.x[i] : t.pair.x[i] - t.b_start;
+    t.near_gap[i] = distance <= kNearGapDx * t.dx + 1e-9 ? 1 : 0;
+  }
+  return t;
+}
+
+// Every combination with o.test_draws boundary-condition draws, predicted by both models.
+std::vector<TestCase> run_test_cases(const HeatSticksOptions& o, const TestSticks& sticks,
+                                     const std::array<TrainResult, 2>& trained) {
+  std::mt19937_64 test_rng(o.seed ^ 0x9E3779B97F4A7C15ull);
+  std::uniform_real_distribution<double> value(-1.0, 1.0);
+  std::vector<TestCase> cases;
+  for (int c = 0; c < static_cast<int>(kCombos.size()); ++c) {
+    for (int d = 0; d < o.test_draws; ++d) {
+      TestCase t;
+      t.combo = c;
+      t.draw = d;
+      t.bcs[0].dirichlet_left = kCombos[c].a_dirichlet_left;
+      t.bcs[1].dirichlet_left = kCombos[c].b_dirichlet_left;
+      for (auto& bc : t.bcs) {
+        bc.t_dirichlet = value(test_rng);
+        bc.flux = value(test_rng);
+      }
+      const std::vector<StickBc> bcs(t.bcs.begin(), t.bcs.end());
+      t.truth = to_floats(stick_solution(sticks.pair, bcs));
+      for (size_t m = 0; m < kModels.size(); ++m) {
+        BsmsGnn& model = *trained[m].model;
+        t.pair[m] = to_floats(predict(model, kModels[m].kind, sticks.pair, bcs, o.levels));
+        for (size_t s = 0; s < 2; ++s) {
+          auto p =
+              to_floats(predict(model, kModels[m].kind, sticks.alone[s], {t.bcs[s]}, o.levels));
+          t.alone[m].insert(t.alone[m].end(), p.begin(), p.end());
+        }
+      }
+      cases.push_back(std::move(t));
+    }
+  }
+  return cases;
+}
+
+Json setup_metrics(const HeatSticksOptions& o, const TestSticks& sticks) {
+  return {{"nodes_per_stick", o.nodes},
+          {"dx", sticks.dx},
+          {"levels", o.levels},
+          {"gap_dx", o.gap},
+          {"gap", sticks.gap},
+          {"stick_a", {0.0, 1.0}},
+          {"stick_b", {sticks.b_start, sticks.b_start + 1.0}},
+          {"near_gap_dx", kNearGapDx},
+          {"proximity_cell_size", kProximityCellDx * sticks.dx},
+          {"seeding", "closecenter"},
+          {"latent", o.latent},
+          {"batch", o.batch},
+          {"steps", o.steps},
+          {"lr", o.lr},
+          {"lr_final", o.lr_final},
+          {"train_offset_range", {0.0, 1.0}},
+          {"test_draws_per_combo", o.test_draws},
+          {"seed", o.seed}};
+}
+
+// Mean of the last kFinalLossSteps training losses.
+double final_loss(const std::vector<double>& losses) {
+  const int64_t tail = std::min<int64_t>(kFinalLossSteps, static_cast<int64_t>(losses.size()));
+  double loss = 0.0;
+  for (int64_t s = static_cast<int64_t>(losses.size()) - tail;
+       s < static_cast<int64_t>(losses.size()); ++s) {
+    loss += losses[s] / static_cast<double>(tail);
+  }
+  return loss;
+}
+
+// Node and edge counts and how much the hierarchy of the two test sticks mixes them.
+Json hierarchy_metrics(const MultilevelTensors& g, const std::vector<int64_t>& stick) {
+  const StickMixing mixing = stick_mixing(g, stick);
+  std::vector<int64_t> nodes_per_level, edges_per_level;
+  for (int k = 0; k < g.num_levels(); ++k) {
+    nodes_per_level.push_back(g.num_nodes(k));
+    edges_per_level.push_back(g.edge_sets[k][0].num_edges());
+  }
+  return {{"nodes_per_level", nodes_per_level},
+          {"edges_per_level", edges_per_level},
+          {"cross_gap_edges_per_level", mixing.cross_stick_edges},
+          {"mixed_nodes_per_level", mixing.mixed_nodes}};
+}
+
+// Model m's training figures and test errors; `test_graph` is its hierarchy of the two sticks.
+Json model_metrics(size_t m, const TrainResult& trained, const std::vector<TestCase>& cases,
+                   const TestSticks& sticks, const MultilevelTensors& test_graph) {
+  RmsAccumulator all, near, all_alone, near_alone;
+  std::array<RmsAccumulator, 4> by_combo;
+  double max_diff = 0.0;
+  for (const auto& t : cases) {
+    for (size_t i = 0; i < t.truth.size(); ++i) {
+      const double e = t.pair[m][i] - t.truth[i], ea = t.alone[m][i] - t.truth[i];
+      all.add(e);
+      all_alone.add(ea);
+      by_combo[t.combo].add(e);
+      if (sticks.near_gap[i]) {
+        near.add(e);
+        near_alone.add(ea);
+      }
+      max_diff = std::max(max_diff, std::abs(static_cast<double>(t.pair[m][i] - t.alone[m][i])));
+    }
+  }
+  const auto& losses = trained.losses;
+  const double loss = final_loss(losses);
+  Json combos = Json::object();
+  for (size_t c = 0; c < kCombos.size(); ++c) combos[kCombos[c].name] = by_combo[c].value();
+  return {{"label", kModels[m].label},
+          {"train_loss_final", loss},
+          {"train_rmse_final", std::sqrt(loss)},
+          {"train_steps", static_cast<int64_t>(losses.size())},
+          {"train_wall_s", trained.wall_s},
+          {"train_ms_per_step", 1e3 * trained.wall_s / static_cast<double>(losses.size())},
+          {"rmse_alone", all_alone.value()},
+          {"rmse_pair", all.value()},
+          {"rmse_alone_near_gap", near_alone.value()},
+          {"rmse_pair_near_gap", near.value()},
+          {"rmse_pair_by_combo", combos},
+          {"max_abs_pair_minus_alone", max_diff},
+          {"test_hierarchy", hierarchy_metrics(test_graph, sticks.pair.stick)}};
+}
+
+// profiles.csv: every test case, both models, on the two-stick graph and each stick alone.
+void write_profiles(const HeatSticksOptions& o, const fs::path& out, const Sticks& pair,
+                    const std::vector<TestCase>& cases) {
+  std::ostringstream csv;
+  csv << "case,combo,draw,stick,node,x,truth,bistride,proximity,bistride_alone,proximity_alone\n";
+  csv << std::setprecision(7);
+  for (size_t k = 0; k < cases.size(); ++k) {
+    const auto& t = cases[k];
+    for (size_t i = 0; i < t.truth.size(); ++i) {
+      csv << k << ',' << kCombos[t.combo].name << ',' << t.draw << ',' << pair.stick[i] << ','
+          << static_cast<int64_t>(i) % o.nodes << ',' << pair.x[i] << ',' << t.truth[i] << ','
+          << t.pair[0][i] << ',' << t.pair[1][i] << ',' << t.alone[0][i] << ',' << t.alone[1][i]
+          << '\n';
+    }
+  }
+  write_text_atomic((out / "profiles.csv").string(), csv.str());
+}
+
+// train_log.csv: both models' training losses.
+void write_train_log(const HeatSticksOptions& o, const fs::path& out,
+                     const std::array<TrainResult, 2>& trained) {
+  std::ostringstream log;
+  log << "step,bistride_loss,proximity_loss\n" << std::setprecision(6);
+  for (int64_t s = 0; s < o.steps; ++s) {
+    log << s + 1 << ',' << trained[0].losses[s] << ',' << trained[1].losses[s] << '\n';
+  }
+  write_text_atomic((out / "train_log.csv").string(), log.str());
+}
+
+// The plot's data: the four combinations, first draw, one file each.
+void write_plot_data(const HeatSticksOptions& o, const fs::path& plots, const Sticks& pair,
+                     const std::vector<TestCase>& cases) {
+  for (const auto& t : cases) {
+    if (t.draw != 0) continue;
+    std::ostringstream dat;
+    dat << "# x truth bistride proximity (two-stick graph)\n" << std::setprecision(7);
+    for (size_t i = 0; i < t.truth.size(); ++i) {
+      if (i == static_cast<size_t>(o.nodes)) dat << '\n';  // break the line at the gap
+      dat << pair.x[i] << ' ' << t.truth[i] << ' ' << t.pair[0][i] << ' ' << t.pair[1][i] << '\n';
+    }
+    write_text_atomic(
+        (plots / ("heat_sticks_" + std::string(kCombos[t.combo].name) + ".dat")).string(),
+        dat.str());
+  }
+}
+
 std::string plot_script(const HeatSticksOptions& o, const fs::path& plots,
                         const std::vector<TestCase>& cases, double gap_mid) {
   std::ostringstream g;
@@ -204,174 +391,31 @@ Json run_heat_sticks(const HeatSticksOptions& o) {
   if (ec) throw InputError(o.out + ": cannot create the output folder (" + ec.message() + ")");
   Stopwatch total;
 
-  // --- training
   std::array<TrainResult, 2> trained;
   for (size_t m = 0; m < kModels.size(); ++m) trained[m] = train_model(o, kModels[m]);
+  const TestSticks sticks = make_test_sticks(o);
+  const std::vector<TestCase> cases = run_test_cases(o, sticks, trained);
 
-  // --- test: two sticks head to tail, A on [0, 1] and B on [1 + gap, 2 + gap]
-  const double dx = 1.0 / static_cast<double>(o.nodes - 1), gap = o.gap * dx;
-  const double b_start = 1.0 + gap, gap_mid = 1.0 + 0.5 * gap;
-  const Sticks pair = make_sticks({0.0, b_start}, o.nodes);
-  const std::array<Sticks, 2> alone{make_sticks({0.0}, o.nodes), make_sticks({b_start}, o.nodes)};
-  std::vector<char> near_gap(pair.x.size());
-  for (size_t i = 0; i < pair.x.size(); ++i) {
-    const double distance = pair.stick[i] == 0 ? 1.0 - pair.x[i] : pair.x[i] - b_start;
-    near_gap[i] = distance <= kNearGapDx * dx + 1e-9 ? 1 : 0;
-  }
-  std::mt19937_64 test_rng(o.seed ^ 0x9E3779B97F4A7C15ull);
-  std::uniform_real_distribution<double> value(-1.0, 1.0);
-  std::vector<TestCase> cases;
-  for (int c = 0; c < static_cast<int>(kCombos.size()); ++c) {
-    for (int d = 0; d < o.test_draws; ++d) {
-      TestCase t;
-      t.combo = c;
-      t.draw = d;
-      t.bcs[0].dirichlet_left = kCombos[c].a_dirichlet_left;
-      t.bcs[1].dirichlet_left = kCombos[c].b_dirichlet_left;
-      for (auto& bc : t.bcs) {
-        bc.t_dirichlet = value(test_rng);
-        bc.flux = value(test_rng);
-      }
-      const std::vector<StickBc> bcs(t.bcs.begin(), t.bcs.end());
-      t.truth = to_floats(stick_solution(pair, bcs));
-      for (size_t m = 0; m < kModels.size(); ++m) {
-        BsmsGnn& model = *trained[m].model;
-        t.pair[m] = to_floats(predict(model, kModels[m].kind, pair, bcs, o.levels));
-        for (size_t s = 0; s < 2; ++s) {
-          auto p = to_floats(predict(model, kModels[m].kind, alone[s], {t.bcs[s]}, o.levels));
-          t.alone[m].insert(t.alone[m].end(), p.begin(), p.end());
-        }
-      }
-      cases.push_back(std::move(t));
-    }
-  }
-
-  // --- metrics
   Json metrics;
   metrics["experiment"] = "heat-sticks";
   metrics["reference"] = "thesis Figure 4.6 (failure cases for spatial proximity)";
-  metrics["setup"] = {{"nodes_per_stick", o.nodes},
-                      {"dx", dx},
-                      {"levels", o.levels},
-                      {"gap_dx", o.gap},
-                      {"gap", gap},
-                      {"stick_a", {0.0, 1.0}},
-                      {"stick_b", {b_start, b_start + 1.0}},
-                      {"near_gap_dx", kNearGapDx},
-                      {"proximity_cell_size", kProximityCellDx * dx},
-                      {"seeding", "closecenter"},
-                      {"latent", o.latent},
-                      {"batch", o.batch},
-                      {"steps", o.steps},
-                      {"lr", o.lr},
-                      {"lr_final", o.lr_final},
-                      {"train_offset_range", {0.0, 1.0}},
-                      {"test_draws_per_combo", o.test_draws},
-                      {"seed", o.seed}};
-  const std::array<MultilevelTensors, 2> test_graphs{bistride_multilevel(pair, o.levels),
-                                                     proximity_multilevel(pair, o.levels)};
+  metrics["setup"] = setup_metrics(o, sticks);
+  const std::array<MultilevelTensors, 2> test_graphs{bistride_multilevel(sticks.pair, o.levels),
+                                                     proximity_multilevel(sticks.pair, o.levels)};
   for (size_t m = 0; m < kModels.size(); ++m) {
-    RmsAccumulator all, near, all_alone, near_alone;
-    std::array<RmsAccumulator, 4> by_combo;
-    double max_diff = 0.0;
-    for (const auto& t : cases) {
-      for (size_t i = 0; i < t.truth.size(); ++i) {
-        const double e = t.pair[m][i] - t.truth[i], ea = t.alone[m][i] - t.truth[i];
-        all.add(e);
-        all_alone.add(ea);
-        by_combo[t.combo].add(e);
-        if (near_gap[i]) {
-          near.add(e);
-          near_alone.add(ea);
-        }
-        max_diff = std::max(max_diff, std::abs(static_cast<double>(t.pair[m][i] - t.alone[m][i])));
-      }
-    }
-    const auto& losses = trained[m].losses;
-    const int64_t tail = std::min<int64_t>(kFinalLossSteps, static_cast<int64_t>(losses.size()));
-    double final_loss = 0.0;
-    for (int64_t s = static_cast<int64_t>(losses.size()) - tail;
-         s < static_cast<int64_t>(losses.size()); ++s) {
-      final_loss += losses[s] / static_cast<double>(tail);
-    }
-    Json combos = Json::object();
-    for (size_t c = 0; c < kCombos.size(); ++c) combos[kCombos[c].name] = by_combo[c].value();
-    const MultilevelTensors& g = test_graphs[m];
-    const StickMixing mixing = stick_mixing(g, pair.stick);
-    std::vector<int64_t> nodes_per_level, edges_per_level;
-    for (int k = 0; k < g.num_levels(); ++k) {
-      nodes_per_level.push_back(g.num_nodes(k));
-      edges_per_level.push_back(g.edge_sets[k][0].num_edges());
-    }
-    metrics["models"][kModels[m].key] = {
-        {"label", kModels[m].label},
-        {"train_loss_final", final_loss},
-        {"train_rmse_final", std::sqrt(final_loss)},
-        {"train_steps", static_cast<int64_t>(losses.size())},
-        {"train_wall_s", trained[m].wall_s},
-        {"train_ms_per_step", 1e3 * trained[m].wall_s / static_cast<double>(losses.size())},
-        {"rmse_alone", all_alone.value()},
-        {"rmse_pair", all.value()},
-        {"rmse_alone_near_gap", near_alone.value()},
-        {"rmse_pair_near_gap", near.value()},
-        {"rmse_pair_by_combo", combos},
-        {"max_abs_pair_minus_alone", max_diff},
-        {"test_hierarchy",
-         {{"nodes_per_level", nodes_per_level},
-          {"edges_per_level", edges_per_level},
-          {"cross_gap_edges_per_level", mixing.cross_stick_edges},
-          {"mixed_nodes_per_level", mixing.mixed_nodes}}}};
+    metrics["models"][kModels[m].key] = model_metrics(m, trained[m], cases, sticks, test_graphs[m]);
   }
   metrics["threads"] = threads;
 
-  // --- profiles.csv: every test case, both models, on the two-stick graph and each stick alone
-  {
-    std::ostringstream csv;
-    csv << "case,combo,draw,stick,node,x,truth,bistride,proximity,bistride_alone,proximity_alone\n";
-    csv << std::setprecision(7);
-    for (size_t k = 0; k < cases.size(); ++k) {
-      const auto& t = cases[k];
-      for (size_t i = 0; i < t.truth.size(); ++i) {
-        csv << k << ',' << kCombos[t.combo].name << ',' << t.draw << ',' << pair.stick[i] << ','
-            << static_cast<int64_t>(i) % o.nodes << ',' << pair.x[i] << ',' << t.truth[i] << ','
-            << t.pair[0][i] << ',' << t.pair[1][i] << ',' << t.alone[0][i] << ',' << t.alone[1][i]
-            << '\n';
-      }
-    }
-    write_text_atomic((out / "profiles.csv").string(), csv.str());
-  }
-  // --- training losses
-  {
-    std::ostringstream log;
-    log << "step,bistride_loss,proximity_loss\n" << std::setprecision(6);
-    for (int64_t s = 0; s < o.steps; ++s) {
-      log << s + 1 << ',' << trained[0].losses[s] << ',' << trained[1].losses[s] << '\n';
-    }
-    write_text_atomic((out / "train_log.csv").string(), log.str());
-  }
-
-  // --- plot: the four combinations, first draw
-  {
-    for (const auto& t : cases) {
-      if (t.draw != 0) continue;
-      std::ostringstream dat;
-      dat << "# x truth bistride proximity (two-stick graph)\n" << std::setprecision(7);
-      for (size_t i = 0; i < t.truth.size(); ++i) {
-        if (i == static_cast<size_t>(o.nodes)) dat << '\n';  // break the line at the gap
-        dat << pair.x[i] << ' ' << t.truth[i] << ' ' << t.pair[0][i] << ' ' << t.pair[1][i] << '\n';
-      }
-      write_text_atomic(
-          (plots / ("heat_sticks_" + std::string(kCombos[t.combo].name) + ".dat")).string(),
-          dat.str());
-    }
-  }
+  write_profiles(o, out, sticks.pair, cases);
+  write_train_log(o, out, trained);
+  write_plot_data(o, plots, sticks.pair, cases);
   const bool plotted =
-      draw_plot((plots / "heat_sticks.gp").string(), plot_script(o, plots, cases, gap_mid));
+      draw_plot((plots / "heat_sticks.gp").string(), plot_script(o, plots, cases, sticks.gap_mid));
   metrics["plot"] = plotted ? Json("plots/heat_sticks.png") : Json(nullptr);
   metrics["wall_s"] = total.seconds();
 
-  // --- markdown section
-  const int64_t near_gap_nodes = std::count(near_gap.begin(), near_gap.end(), 1);
+  const int64_t near_gap_nodes = std::count(sticks.near_gap.begin(), sticks.near_gap.end(), 1);
   write_text_atomic((out / "heat_sticks.md").string(),
                     heat_sticks_markdown(o, metrics, near_gap_nodes, threads, plotted));
   write_json_atomic((out / "metrics.json").string(), metrics);

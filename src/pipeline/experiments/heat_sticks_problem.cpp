@@ -7,9 +7,9 @@
 
 #include "core/error.hpp"
 #include "core/graph.hpp"
-#include "models/proximity_multilevel.hpp"
 #include "pipeline/graphs/multilevel_tensors.hpp"
 #include "preprocess/multilevel_graph.hpp"
+#include "preprocess/proximity_pooling.hpp"
 
 namespace bsms {
 
@@ -102,8 +102,15 @@ MultilevelTensors bistride_multilevel(const Sticks& sticks, int levels) {
 }
 
 MultilevelTensors proximity_multilevel(const Sticks& sticks, int levels) {
-  return make_proximity_multilevel(sticks.positions, sticks.edges, levels,
-                                   kProximityCellDx * sticks.dx());
+  // The grid bins the positions the model sees (float32), not the double ones.
+  const auto p = sticks.positions.to(torch::kFloat64).contiguous();
+  const RowMatrixXd positions =
+      Eigen::Map<const RowMatrixXd>(p.data_ptr<double>(), p.size(0), p.size(1));
+  const auto e = sticks.edges.contiguous();
+  EdgeList edges;
+  edges.data.assign(e.data_ptr<int64_t>(), e.data_ptr<int64_t>() + e.numel());
+  return make_multilevel_tensors(
+      build_proximity_multilevel_graph(positions, edges, levels, kProximityCellDx * sticks.dx()));
 }
 
 StickMixing stick_mixing(const MultilevelTensors& graph, const std::vector<int64_t>& stick) {

@@ -74,7 +74,7 @@ torch::Tensor stick_inputs(const Sticks& sticks, const std::vector<StickBc>& bcs
 torch::Tensor stick_solution(const Sticks& sticks, const std::vector<StickBc>& bcs);
 
 // The two hierarchies compared: bi-stride with CloseCenter seeding (preprocess/), and proximity
-// with a level-1 cell of 2 dx (models/proximity_multilevel.hpp).
+// with a level-1 cell of 2 dx (preprocess/proximity_pooling.hpp).
 MultilevelTensors bistride_multilevel(const Sticks& sticks, int levels);
 MultilevelTensors proximity_multilevel(const Sticks& sticks, int levels);
 

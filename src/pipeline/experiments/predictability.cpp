@@ -25,9 +25,9 @@
 #include "data/generate/family.hpp"
 #include "data/generate/rng.hpp"
 #include "data/generate/trajectory_solver.hpp"
-#include "pipeline/rollout/body_motion_error.hpp"
 #include "pipeline/experiments/experiment_runs.hpp"
 #include "pipeline/report/number_format.hpp"
+#include "pipeline/rollout/body_motion_error.hpp"
 #include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/runs/run_files.hpp"
 
@@ -254,6 +254,35 @@ const std::vector<float>& positions(const Trajectory& t, const std::string& wher
   return it->second;
 }
 
+// Constant velocity from frame 1 against `truth` [F, N, dim], as bsms rollout scores it
+// (prescribed nodes take the truth): per predicted step into `result`.
+void score_constant_velocity(const torch::Tensor& truth, const TrajectoryMesh& mesh,
+                             TrajectoryResult& result) {
+  const int64_t frames = truth.size(0), n = mesh.num_nodes();
+  std::vector<uint8_t> free_node(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i)
+    free_node[static_cast<size_t>(i)] =
+        mesh.node_type[static_cast<size_t>(i)] == static_cast<int32_t>(NodeType::kNormal);
+  const auto mask =
+      torch::from_blob(free_node.data(), {n, 1}, torch::kUInt8).to(torch::kBool).clone();
+  for (int64_t f = 1; f + 1 < frames; ++f) {
+    const auto cv =
+        torch::where(mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]), truth[f + 1]);
+    const double mse = (cv - truth[f + 1]).pow(2).mean().item<double>();
+    result.cv_step_sq.push_back(mse);
+    result.cv_sq += mse;
+    ++result.cv_steps;
+  }
+}
+
+// The seed of kick draw `draw` of point `point` on the trajectory of generator index `index`.
+uint64_t kick_seed(uint64_t seed, int64_t index, size_t point, int draw) {
+  uint64_t h = splitmix64(seed);
+  h = splitmix64(h ^ static_cast<uint64_t>(index));
+  h = splitmix64(h ^ static_cast<uint64_t>(point));
+  return splitmix64(h ^ static_cast<uint64_t>(draw));
+}
+
 TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const StoredTrajectory& st,
                                 const std::vector<Point>& points, double centre, double rotation,
                                 const PredictabilityOptions& o, int64_t position,
@@ -280,21 +309,7 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
                                            std::abs(static_cast<double>(ref[k]) - st.world_pos[k]));
   const auto truth =
       torch::from_blob(const_cast<float*>(ref.data()), {st.frames, n, dim}, torch::kFloat32);
-  std::vector<uint8_t> free_node(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i)
-    free_node[static_cast<size_t>(i)] =
-        mesh.node_type[static_cast<size_t>(i)] == static_cast<int32_t>(NodeType::kNormal);
-  const auto mask =
-      torch::from_blob(free_node.data(), {n, 1}, torch::kUInt8).to(torch::kBool).clone();
-  // Constant velocity from frame 1, as bsms rollout (prescribed nodes take the truth).
-  for (int64_t f = 1; f + 1 < st.frames; ++f) {
-    const auto cv =
-        torch::where(mask, truth[1] + static_cast<double>(f) * (truth[1] - truth[0]), truth[f + 1]);
-    const double mse = (cv - truth[f + 1]).pow(2).mean().item<double>();
-    result.cv_step_sq.push_back(mse);
-    result.cv_sq += mse;
-    ++result.cv_steps;
-  }
+  score_constant_velocity(truth, mesh, result);
 
   const auto bodies = free_bodies(mesh);
   result.points.resize(points.size());
@@ -321,13 +336,9 @@ TrajectoryResult run_trajectory(const generate::FamilyConfig& family, const Stor
       continue;
     }
     for (int d = 0; d < o.draws; ++d) {
-      uint64_t h = splitmix64(o.seed);
-      h = splitmix64(h ^ static_cast<uint64_t>(st.index));
-      h = splitmix64(h ^ static_cast<uint64_t>(p));
-      h = splitmix64(h ^ static_cast<uint64_t>(d));
       const Point pt = points[p];
       Kicker kicker(bodies, dim, family.frame_dt, centre * pt.scale, rotation * pt.scale, pt.rho,
-                    h);
+                    kick_seed(o.seed, st.index, p, d));
       const generate::FrameHook hook = [&](int frame, const std::vector<double>& x,
                                            std::vector<double>& v) {
         if (frame < 1 || (pt.once && frame != 1)) return;
@@ -361,9 +372,7 @@ std::string sci(double v) {
   return format_number(v, 2, Notation::kScientific);
 }
 
-}  // namespace
-
-Json predictability_experiment(const PredictabilityOptions& o) {
+void check_options(const PredictabilityOptions& o) {
   if (o.out.empty()) throw InputError("predictability: --out is required");
   if (o.draws < 1) throw InputError("--draws " + std::to_string(o.draws) + ": must be >= 1");
   if (o.scales.empty()) throw InputError("--scales: give at least one scale");
@@ -382,14 +391,24 @@ Json predictability_experiment(const PredictabilityOptions& o) {
       throw InputError("--solver-set " + truncate_for_message(assignment, 80) +
                        ": expected scene.KEY=VALUE (a key of the family's scene, e.g. "
                        "scene.background.element_size=0.041)");
+}
 
-  // The base one-step error: given, or the run's one-step body error.
-  double centre = o.centre, rotation = o.rotation;
-  std::string base_source = "given", base_data;
-  std::optional<RolloutMetrics> model_rollout;
+// The base one-step error per frame, and the run's own rollout when there is one.
+struct BaseError {
+  double centre = 0.0, rotation = 0.0;
+  std::string source = "given";  // "given" or the one-step metrics file it was read from
+  std::string data;              // the dataset of that one-step rollout ("" when given)
+  std::optional<RolloutMetrics> model_rollout;  // RUN/rollout/metrics.json
+};
+
+// The base one-step error: given, or the run's one-step body error.
+BaseError resolve_base_error(const PredictabilityOptions& o) {
+  BaseError base;
+  base.centre = o.centre;
+  base.rotation = o.rotation;
   if (!o.run.empty()) {
     const fs::path one_step = fs::path(o.run) / "rollout_one_step" / "metrics.json";
-    if (centre <= 0 || rotation < 0) {
+    if (base.centre <= 0 || base.rotation < 0) {
       if (!fs::exists(one_step))
         throw InputError(one_step.string() + ": missing; run bsms rollout " + o.run + " --split " +
                          o.split + " --one-step first, or give --centre");
@@ -398,20 +417,25 @@ Json predictability_experiment(const PredictabilityOptions& o) {
         throw InputError(one_step.string() +
                          ": not a one-step rollout with body error parts (rmse_all_parts); "
                          "re-run bsms rollout --one-step");
-      if (centre <= 0) centre = m.rmse_all_parts->centre;
-      if (rotation < 0) rotation = m.rmse_all_parts->rotation;
-      base_source = one_step.string();
-      base_data = m.data;
+      if (base.centre <= 0) base.centre = m.rmse_all_parts->centre;
+      if (base.rotation < 0) base.rotation = m.rmse_all_parts->rotation;
+      base.source = one_step.string();
+      base.data = m.data;
     }
     const fs::path rollout = fs::path(o.run) / "rollout" / "metrics.json";
-    if (fs::exists(rollout)) model_rollout = read_rollout_metrics(rollout.string());
+    if (fs::exists(rollout)) base.model_rollout = read_rollout_metrics(rollout.string());
   }
-  if (rotation < 0) rotation = 0.0;
-  if (!(centre > 0))
+  if (base.rotation < 0) base.rotation = 0.0;
+  if (!(base.centre > 0))
     throw InputError(
         "predictability: no base error; give --run RUN (with a --one-step rollout) "
         "or --centre METRES");
+  return base;
+}
 
+// The family of DATA/generate.json, altered by --solver-set (the re-solve's reference, kicked or
+// not).
+generate::FamilyConfig load_family(const PredictabilityOptions& o) {
   const fs::path manifest = fs::path(o.data) / "generate.json";
   if (!fs::exists(manifest))
     throw InputError(manifest.string() +
@@ -419,27 +443,32 @@ Json predictability_experiment(const PredictabilityOptions& o) {
   const Json gen = load_json_file(manifest.string(), "generate manifest");
   if (!gen.contains("config") || !gen["config"].is_object())
     throw InputError(manifest.string() + ": key config: expected the family config object");
-  // --solver-set: the family as stored, altered (the re-solve's reference, kicked or not).
   Json family_json = gen["config"];
   for (const std::string& assignment : o.solver_set)
     apply_override(family_json, assignment, "--solver-set");
-  const generate::FamilyConfig family = generate::parse_family(
+  return generate::parse_family(
       family_json, manifest.string() + " (config" +
                        (o.solver_set.empty() ? std::string() : ", altered by --solver-set") + ")");
+}
 
-  const Dataset data = Dataset::open_split(o.data, o.split);
-  if (!base_data.empty()) {
+void check_dataset(const Dataset& data, const BaseError& base, const PredictabilityOptions& o) {
+  if (!base.data.empty()) {
     // The base error must be the run's error on these trajectories.
     // (A path that no longer resolves, e.g. relative to another folder, is let through.)
     std::error_code same_ec;
-    if (fs::exists(base_data, same_ec) && !fs::equivalent(base_data, data.location(), same_ec))
-      throw InputError(base_source + ": a one-step rollout on " + base_data + ", not on " +
+    if (fs::exists(base.data, same_ec) && !fs::equivalent(base.data, data.location(), same_ec))
+      throw InputError(base.source + ": a one-step rollout on " + base.data + ", not on " +
                        data.location() + "; roll the run out on it (bsms rollout " + o.run +
                        " --data " + o.data + " --split " + o.split +
                        " --one-step) or give --centre and --rotation");
   }
   if (!data.has_field("world_pos"))
     throw InputError(data.location() + ": no world_pos field; a Lagrangian dataset is needed");
+}
+
+// The trajectories re-solved, read in full beforehand: the workers read no file.
+std::vector<StoredTrajectory> read_stored(const Dataset& data, const generate::FamilyConfig& family,
+                                          const PredictabilityOptions& o) {
   const int64_t count = o.max_trajectories > 0
                             ? std::min(o.max_trajectories, data.num_trajectories())
                             : data.num_trajectories();
@@ -452,37 +481,56 @@ Json predictability_experiment(const PredictabilityOptions& o) {
     st.frames = data.num_frames(t);
     if (st.frames < 3) throw InputError(where + ": fewer than 3 frames");
     st.world_pos = data.read(t, "world_pos", 0, st.frames);
-    st.mesh = data.mesh(t);  // the workers read no file
+    st.mesh = data.mesh(t);
   }
+  return stored;
+}
 
+// The rows of the experiment and how long their kicks persist.
+struct KickPlan {
+  double rho = 0.0;  // correlation of the persistent rows' kicks between frames
+  std::optional<ErrorPersistence> persistence;  // the run's, when rho was measured
+  std::vector<Point> points;
+};
+
+KickPlan plan_kicks(const PredictabilityOptions& o) {
   // How long the kicks persist: given, or as long as the run's one-step errors.
-  double rho = o.correlation;
-  std::optional<ErrorPersistence> persistence;
-  if (rho < 0 && !o.run.empty()) {
+  KickPlan plan;
+  plan.rho = o.correlation;
+  if (plan.rho < 0 && !o.run.empty()) {
     const fs::path file = fs::path(o.run) / "rollout_one_step" / (o.split + ".h5");
     if (!fs::exists(file))
       throw InputError(file.string() + ": missing; run bsms rollout " + o.run + " --split " +
                        o.split + " --one-step first, or give --correlation");
-    persistence = one_step_error_persistence(file.string());
-    rho = persistence->rho_ar1;
+    plan.persistence = one_step_error_persistence(file.string());
+    plan.rho = plan.persistence->rho_ar1;
   }
-  if (!(rho < 1.0)) throw InputError("--correlation " + format_number(rho) + ": must be < 1");
-  std::vector<Point> points;
-  for (double s : o.scales) points.push_back({s, false, 0.0});
-  if (rho > 0)
-    for (double s : o.scales) points.push_back({s, false, rho});
-  for (double s : o.scales) points.push_back({s, true, 0.0});
-  if (!o.solver_set.empty()) points.push_back({0.0, false, 0.0, true});
+  if (!(plan.rho < 1.0))
+    throw InputError("--correlation " + format_number(plan.rho) + ": must be < 1");
+  for (double s : o.scales) plan.points.push_back({s, false, 0.0});
+  if (plan.rho > 0)
+    for (double s : o.scales) plan.points.push_back({s, false, plan.rho});
+  for (double s : o.scales) plan.points.push_back({s, true, 0.0});
+  if (!o.solver_set.empty()) plan.points.push_back({0.0, false, 0.0, true});
+  return plan;
+}
 
-  const fs::path out = o.out;
-  std::error_code ec;
-  fs::create_directories(out / "plots", ec);
-  if (ec) throw InputError(o.out + ": cannot create (" + ec.message() + ")");
-  const fs::path work = out / ".work";
-  fs::create_directories(work, ec);
+struct SolvedTrajectories {
+  std::vector<TrajectoryResult> results;  // per stored trajectory
+  int threads = 1;                        // trajectories solved at once
+  double wall_s = 0.0;
+};
 
+// Runs every trajectory, `o.threads` at once, in work folders under `work` (removed after); the
+// first failure stops the others and is rethrown.
+SolvedTrajectories solve_trajectories(const generate::FamilyConfig& family,
+                                      const std::vector<StoredTrajectory>& stored,
+                                      const std::vector<Point>& points, const BaseError& base,
+                                      const PredictabilityOptions& o, const fs::path& work) {
+  const auto count = static_cast<int64_t>(stored.size());
   Stopwatch clock;
-  std::vector<TrajectoryResult> results(static_cast<size_t>(count));
+  SolvedTrajectories solved;
+  solved.results.resize(static_cast<size_t>(count));
   std::atomic<int64_t> next{0}, done{0};
   std::mutex failure_mutex;
   std::exception_ptr failure;
@@ -496,9 +544,9 @@ Json predictability_experiment(const PredictabilityOptions& o) {
         if (failure) return;
       }
       try {
-        results[static_cast<size_t>(t)] =
-            run_trajectory(family, stored[static_cast<size_t>(t)], points, centre, rotation, o, t,
-                           (work / ("t" + std::to_string(t))).string());
+        solved.results[static_cast<size_t>(t)] =
+            run_trajectory(family, stored[static_cast<size_t>(t)], points, base.centre,
+                           base.rotation, o, t, (work / ("t" + std::to_string(t))).string());
       } catch (...) {
         const std::lock_guard<std::mutex> lock(failure_mutex);
         if (!failure) failure = std::current_exception();
@@ -511,214 +559,251 @@ Json predictability_experiment(const PredictabilityOptions& o) {
       }
     }
   };
-  const int threads = static_cast<int>(std::min<int64_t>(
+  solved.threads = static_cast<int>(std::min<int64_t>(
       o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency()), count));
   {
     // Each solve is single-threaded; LibTorch's own pool is not wanted for these small tensors.
     const int torch_threads = torch::get_num_threads();
     torch::set_num_threads(1);
     std::vector<std::thread> pool;
-    for (int w = 1; w < threads; ++w) pool.emplace_back(worker);
+    for (int w = 1; w < solved.threads; ++w) pool.emplace_back(worker);
     worker();
     for (auto& th : pool) th.join();
     torch::set_num_threads(torch_threads);
   }
+  std::error_code ec;
   fs::remove_all(work, ec);
   if (failure) std::rethrow_exception(failure);
   if (!o.quiet) bar.finish();
-  const double wall_s = clock.seconds();
+  solved.wall_s = clock.seconds();
+  return solved;
+}
 
-  // Aggregates.
-  double resolve_diff = 0.0, cv_sq = 0.0;
+// Constant velocity over all trajectories, and how far the unkicked re-solves stray.
+struct ConstantVelocity {
+  double resolve_diff = 0.0;  // largest |re-solved - stored| position, m
+  double rmse = 0.0;          // RMSE-all
+  std::vector<double> curve;  // RMSE per predicted step, as long as the longest trajectory's
+};
+
+ConstantVelocity constant_velocity(const std::vector<TrajectoryResult>& results) {
+  ConstantVelocity cv;
+  double cv_sq = 0.0;
   int64_t cv_steps = 0;
   size_t max_steps = 0;
   for (const auto& r : results) {
-    resolve_diff = std::max(resolve_diff, r.resolve_max_abs_diff);
+    cv.resolve_diff = std::max(cv.resolve_diff, r.resolve_max_abs_diff);
     cv_sq += r.cv_sq;
     cv_steps += r.cv_steps;
     max_steps = std::max(max_steps, r.cv_step_sq.size());
   }
-  const double cv_rmse = rms(cv_sq, static_cast<double>(cv_steps));
-  std::vector<double> cv_curve(max_steps, 0.0), cv_count(max_steps, 0.0);
+  cv.rmse = rms(cv_sq, static_cast<double>(cv_steps));
+  std::vector<double> cv_count(max_steps, 0.0);
+  cv.curve.assign(max_steps, 0.0);
   for (const auto& r : results)
     for (size_t s = 0; s < r.cv_step_sq.size(); ++s) {
-      cv_curve[s] += r.cv_step_sq[s];
+      cv.curve[s] += r.cv_step_sq[s];
       cv_count[s] += 1;
     }
-  for (size_t s = 0; s < max_steps; ++s) cv_curve[s] = rms(cv_curve[s], cv_count[s]);
+  for (size_t s = 0; s < max_steps; ++s) cv.curve[s] = rms(cv.curve[s], cv_count[s]);
+  return cv;
+}
 
-  Json point_rows = Json::array();
+// One point (row) over all trajectories.
+struct PointSummary {
+  std::vector<double> curve;  // RMSE per predicted step
+  BodyMotionError parts, first;
+  double first_count = 0, steps = 0;
+  double rmse_all = 0.0, ratio = 0.0;  // RMSE-all, and over constant velocity's on the same
+  std::optional<RatioInterval> interval;
+  size_t trajectories = 0;  // with at least one scored draw
+  int failed = 0;
+};
+
+PointSummary summarize_point(const std::vector<TrajectoryResult>& results, size_t p,
+                             size_t max_steps) {
+  std::vector<double> step_sq(max_steps, 0.0), step_count(max_steps, 0.0);
+  PointSummary out;
+  double sq = 0;
+  TrajectoryRmse per;
+  for (const auto& r : results) {
+    const PointResult& pr = r.points[p];
+    out.failed += pr.failed;
+    if (pr.draws_done == 0) continue;
+    for (size_t s = 0; s < pr.step_sq.size(); ++s) {
+      step_sq[s] += pr.step_sq[s];
+      step_count[s] += pr.draws_done;
+    }
+    out.parts += pr.parts;
+    out.first += pr.first_parts;
+    out.first_count += pr.draws_done;
+    sq += pr.sq;
+    out.steps += static_cast<double>(pr.steps);
+    per.steps.push_back(r.cv_steps);
+    per.model.push_back(rms(pr.sq, static_cast<double>(pr.steps)));
+    per.constant_velocity.push_back(rms(r.cv_sq, static_cast<double>(r.cv_steps)));
+  }
+  out.curve.resize(max_steps);
+  for (size_t s = 0; s < max_steps; ++s) out.curve[s] = rms(step_sq[s], step_count[s]);
+  out.rmse_all = rms(sq, out.steps);
+  double cv_sel_sq = 0, cv_sel_steps = 0;
+  for (size_t i = 0; i < per.size(); ++i) {
+    cv_sel_sq +=
+        per.constant_velocity[i] * per.constant_velocity[i] * static_cast<double>(per.steps[i]);
+    cv_sel_steps += static_cast<double>(per.steps[i]);
+  }
+  out.ratio = out.rmse_all / rms(cv_sel_sq, cv_sel_steps);
+  out.interval = bootstrap_ratio_interval(per.steps, per.model, per.constant_velocity);
+  out.trajectories = per.size();
+  return out;
+}
+
+// metrics.json's row of a point; `c`, `r`: its centre and rotation kick per frame, m.
+Json point_row(const Point& pt, const PointSummary& s, double c, double r) {
+  return {{"scale", pt.scale},
+          {"mode", pt.mode()},
+          {"centre_per_frame_m", c},
+          {"rotation_per_frame_m", r},
+          {"rmse_all", number_or_null(s.rmse_all)},
+          {"rmse_all_over_constant_velocity", number_or_null(s.ratio)},
+          {"rmse_all_ratio_interval",
+           s.interval ? Json::array({s.interval->lo, s.interval->hi}) : Json(nullptr)},
+          {"rmse_per_step", s.curve},
+          {"rmse_all_parts",
+           {{"centre", rms(s.parts.centre, s.steps)},
+            {"rotation", rms(s.parts.rotation, s.steps)},
+            {"deformation", rms(s.parts.deformation, s.steps)}}},
+          {"first_step_parts",
+           {{"centre", rms(s.first.centre, s.first_count)},
+            {"rotation", rms(s.first.rotation, s.first_count)},
+            {"deformation", rms(s.first.deformation, s.first_count)}}},
+          {"trajectories", s.trajectories},
+          {"failed_solves", s.failed}};
+}
+
+// predictability.md's table row of a point; `c`, `r` as for point_row.
+std::string point_table_row(const Point& pt, const PointSummary& s, double c, double r) {
+  const auto at = [&](size_t step) {
+    return step >= 1 && step <= s.curve.size() ? s.curve[step - 1]
+                                               : std::numeric_limits<double>::quiet_NaN();
+  };
+  std::ostringstream table;
+  table << "| " << (pt.altered ? std::string() : format_number(pt.scale) + "×, ") << pt.mode()
+        << " | " << sci(c) << " / " << sci(r) << " | " << sci(rms(s.first.centre, s.first_count))
+        << " / " << sci(rms(s.first.rotation, s.first_count)) << " | " << sci(at(10)) << " / "
+        << sci(at(20)) << " / " << sci(at(s.curve.size())) << " | " << sci(s.rmse_all) << " | "
+        << format_number(s.ratio, 3)
+        << (s.interval ? " [" + format_number(s.interval->lo, 3) + "–" +
+                             format_number(s.interval->hi, 3) + "]"
+                       : std::string())
+        << " | " << sci(rms(s.parts.centre, s.steps)) << " / "
+        << sci(rms(s.parts.rotation, s.steps)) << " / " << sci(rms(s.parts.deformation, s.steps))
+        << " | " << s.failed << " |\n";
+  return table.str();
+}
+
+// Every point as a metrics row, a table row and (some) a plotted curve.
+struct PointTable {
+  Json rows = Json::array();
   std::vector<experiments::Curve> curves;
   // Per mode ("every, independent", "every, persistent"): scales and ratios, for the crossing.
   std::map<std::string, std::pair<std::vector<double>, std::vector<double>>> sweeps;
-  std::ostringstream table;
-  table << "| kick | per frame: centre / rotation (m) | first step: centre / rotation part (m) "
-           "| RMSE at step 10 / 20 / last (m) | RMSE-all (m) | / constant velocity [95 %] | "
-           "centre / rotation / deformation (m) | failed solves |\n"
-           "|---|---|---|---|---|---|---|---|\n";
+  std::string table;  // markdown
+};
+
+PointTable tabulate_points(const std::vector<Point>& points,
+                           const std::vector<TrajectoryResult>& results, size_t max_steps,
+                           const BaseError& base) {
+  PointTable out;
+  out.table =
+      "| kick | per frame: centre / rotation (m) | first step: centre / rotation part (m) "
+      "| RMSE at step 10 / 20 / last (m) | RMSE-all (m) | / constant velocity [95 %] | "
+      "centre / rotation / deformation (m) | failed solves |\n"
+      "|---|---|---|---|---|---|---|---|\n";
   for (size_t p = 0; p < points.size(); ++p) {
-    std::vector<double> step_sq(max_steps, 0.0), step_count(max_steps, 0.0);
-    BodyMotionError parts, first;
-    double first_count = 0, sq = 0, steps = 0;
-    int failed = 0;
-    TrajectoryRmse per;
-    for (const auto& r : results) {
-      const PointResult& pr = r.points[p];
-      failed += pr.failed;
-      if (pr.draws_done == 0) continue;
-      for (size_t s = 0; s < pr.step_sq.size(); ++s) {
-        step_sq[s] += pr.step_sq[s];
-        step_count[s] += pr.draws_done;
-      }
-      parts += pr.parts;
-      first += pr.first_parts;
-      first_count += pr.draws_done;
-      sq += pr.sq;
-      steps += static_cast<double>(pr.steps);
-      per.steps.push_back(r.cv_steps);
-      per.model.push_back(rms(pr.sq, static_cast<double>(pr.steps)));
-      per.constant_velocity.push_back(rms(r.cv_sq, static_cast<double>(r.cv_steps)));
-    }
-    std::vector<double> curve(max_steps);
-    for (size_t s = 0; s < max_steps; ++s) curve[s] = rms(step_sq[s], step_count[s]);
-    const double rmse_all = rms(sq, steps);
-    double cv_sel_sq = 0, cv_sel_steps = 0;
-    for (size_t i = 0; i < per.size(); ++i) {
-      cv_sel_sq +=
-          per.constant_velocity[i] * per.constant_velocity[i] * static_cast<double>(per.steps[i]);
-      cv_sel_steps += static_cast<double>(per.steps[i]);
-    }
-    const double ratio = rmse_all / rms(cv_sel_sq, cv_sel_steps);
-    const auto interval = bootstrap_ratio_interval(per.steps, per.model, per.constant_velocity);
-    const auto at = [&](size_t step) {
-      return step >= 1 && step <= curve.size() ? curve[step - 1]
-                                               : std::numeric_limits<double>::quiet_NaN();
-    };
+    const PointSummary s = summarize_point(results, p, max_steps);
     const Point& pt = points[p];
-    const double c = pt.altered ? 0.0 : centre * pt.scale,
-                 r = pt.altered ? 0.0 : rotation * pt.scale;
-    Json row = {{"scale", pt.scale},
-                {"mode", pt.mode()},
-                {"centre_per_frame_m", c},
-                {"rotation_per_frame_m", r},
-                {"rmse_all", number_or_null(rmse_all)},
-                {"rmse_all_over_constant_velocity", number_or_null(ratio)},
-                {"rmse_all_ratio_interval",
-                 interval ? Json::array({interval->lo, interval->hi}) : Json(nullptr)},
-                {"rmse_per_step", curve},
-                {"rmse_all_parts",
-                 {{"centre", rms(parts.centre, steps)},
-                  {"rotation", rms(parts.rotation, steps)},
-                  {"deformation", rms(parts.deformation, steps)}}},
-                {"first_step_parts",
-                 {{"centre", rms(first.centre, first_count)},
-                  {"rotation", rms(first.rotation, first_count)},
-                  {"deformation", rms(first.deformation, first_count)}}},
-                {"trajectories", per.size()},
-                {"failed_solves", failed}};
-    point_rows.push_back(row);
+    const double c = pt.altered ? 0.0 : base.centre * pt.scale,
+                 r = pt.altered ? 0.0 : base.rotation * pt.scale;
+    out.rows.push_back(point_row(pt, s, c, r));
     if (pt.altered) {
-      curves.push_back(
-          {"altered solver against the stored frames", curve, "lines lw 2 lc rgb 'dark-red'"});
+      out.curves.push_back(
+          {"altered solver against the stored frames", s.curve, "lines lw 2 lc rgb 'dark-red'"});
     } else if (!pt.once) {
-      sweeps[pt.mode()].first.push_back(pt.scale);
-      sweeps[pt.mode()].second.push_back(ratio);
+      out.sweeps[pt.mode()].first.push_back(pt.scale);
+      out.sweeps[pt.mode()].second.push_back(s.ratio);
       if (pt.rho > 0 || pt.scale == 1.0)
-        curves.push_back({pt.mode() + ", " + format_number(pt.scale) + "x", curve,
-                          pt.rho > 0 ? "lines lw 2" : "lines lw 2 dt 4"});
+        out.curves.push_back({pt.mode() + ", " + format_number(pt.scale) + "x", s.curve,
+                              pt.rho > 0 ? "lines lw 2" : "lines lw 2 dt 4"});
     } else if (pt.scale == 1.0) {
-      curves.push_back({"once, 1x", curve, "lines lw 2 dt 3"});
+      out.curves.push_back({"once, 1x", s.curve, "lines lw 2 dt 3"});
     }
-    table << "| " << (pt.altered ? std::string() : format_number(pt.scale) + "×, ") << pt.mode()
-          << " | " << sci(c) << " / " << sci(r) << " | " << sci(rms(first.centre, first_count))
-          << " / " << sci(rms(first.rotation, first_count)) << " | " << sci(at(10)) << " / "
-          << sci(at(20)) << " / " << sci(at(curve.size())) << " | " << sci(rmse_all) << " | "
-          << format_number(ratio, 3)
-          << (interval ? " [" + format_number(interval->lo, 3) + "–" +
-                             format_number(interval->hi, 3) + "]"
-                       : std::string())
-          << " | " << sci(rms(parts.centre, steps)) << " / " << sci(rms(parts.rotation, steps))
-          << " / " << sci(rms(parts.deformation, steps)) << " | " << failed << " |\n";
+    out.table += point_table_row(pt, s, c, r);
   }
-  Json crossings = Json::object();
-  for (const auto& [mode, sweep] : sweeps)
-    crossings[mode] = number_or_null(log_log_crossing(sweep.first, sweep.second, o.target));
+  return out;
+}
 
-  Json result = {{"experiment", "predictability"},
-                 {"data", data.location()},
-                 {"split", o.split},
-                 {"trajectories", count},
-                 {"draws", o.draws},
-                 {"seed", o.seed},
-                 {"threads", threads},
-                 {"wall_s", wall_s},
-                 {"base", {{"centre_m", centre}, {"rotation_m", rotation}, {"from", base_source}}},
-                 {"resolve_max_abs_diff_m", resolve_diff},
-                 {"solver_set", o.solver_set},
-                 {"rmse_all_constant_velocity", number_or_null(cv_rmse)},
-                 {"constant_velocity_per_step", cv_curve},
-                 {"points", point_rows},
-                 {"target", o.target},
-                 {"correlation", rho > 0 ? Json(rho) : Json(0.0)},
-                 {"target_scale", crossings}};
-  if (persistence)
-    result["one_step_persistence"] = {{"autocorrelation", persistence->autocorrelation},
-                                      {"tau", persistence->tau},
-                                      {"rho_ar1", persistence->rho_ar1},
-                                      {"body_frames", persistence->body_frames}};
-
+// metrics.json's model_rollout and the report's sentence on the run's own rollout; its curve
+// joins `curves`.
+std::string add_model_rollout(const RolloutMetrics& rollout, const PredictabilityOptions& o,
+                              Json& result, std::vector<experiments::Curve>& curves) {
+  const double m_all = experiments::rmse(rollout, "rmse_all");
+  const double m_cv = experiments::rmse_constant_velocity(rollout);
+  result["model_rollout"] = {{"file", (fs::path(o.run) / "rollout" / "metrics.json").string()},
+                             {"data", rollout.data},
+                             {"rmse_all", number_or_null(m_all)},
+                             {"rmse_all_over_constant_velocity", number_or_null(m_all / m_cv)}};
+  curves.push_back({"model rollout (" + o.run + ")", rollout.per_step("world_pos"),
+                    "lines lw 3 lc rgb 'black'"});
   std::ostringstream model_line;
-  if (model_rollout) {
-    const double m_all = experiments::rmse(*model_rollout, "rmse_all");
-    const double m_cv = experiments::rmse_constant_velocity(*model_rollout);
-    result["model_rollout"] = {{"file", (fs::path(o.run) / "rollout" / "metrics.json").string()},
-                               {"data", model_rollout->data},
-                               {"rmse_all", number_or_null(m_all)},
-                               {"rmse_all_over_constant_velocity", number_or_null(m_all / m_cv)}};
-    curves.push_back({"model rollout (" + o.run + ")", model_rollout->per_step("world_pos"),
-                      "lines lw 3 lc rgb 'black'"});
-    model_line << "The run's own rollout (`" << o.run << "/rollout/metrics.json`, on `"
-               << model_rollout->data << "`): RMSE-all " << sci(m_all) << " m, "
-               << format_number(m_all / m_cv, 3) << "× constant velocity"
-               << (model_rollout->rmse_all_ratio_interval
-                       ? " [" + format_number(model_rollout->rmse_all_ratio_interval->lo, 3) + "–" +
-                             format_number(model_rollout->rmse_all_ratio_interval->hi, 3) + "]"
-                       : std::string())
-               << ".\n\n";
-  }
-  curves.push_back({"constant velocity", cv_curve, "lines lw 2 dt 2 lc rgb 'gray40'"});
-  experiments::plot_curves(out / "plots", "predictability_rmse",
-                           "Solver kicked by one-step body errors: RMSE against the unkicked solve",
-                           "RMSE (m)", true, curves);
+  model_line << "The run's own rollout (`" << o.run << "/rollout/metrics.json`, on `"
+             << rollout.data << "`): RMSE-all " << sci(m_all) << " m, "
+             << format_number(m_all / m_cv, 3) << "× constant velocity"
+             << (rollout.rmse_all_ratio_interval
+                     ? " [" + format_number(rollout.rmse_all_ratio_interval->lo, 3) + "–" +
+                           format_number(rollout.rmse_all_ratio_interval->hi, 3) + "]"
+                     : std::string())
+             << ".\n\n";
+  return model_line.str();
+}
 
+// The report's sentence on how long the kicks persist ("" when there are no persistent rows).
+std::string persistence_paragraph(const PredictabilityOptions& o, const KickPlan& kicks) {
   std::ostringstream persistence_line;
-  if (persistence) {
+  if (kicks.persistence) {
+    const ErrorPersistence& persistence = *kicks.persistence;
     persistence_line << "The run's one-step errors (`" << o.run << "/rollout_one_step/" << o.split
-                     << ".h5`, " << persistence->body_frames
+                     << ".h5`, " << persistence.body_frames
                      << " body-frames) persist: autocorrelation of a body's centre error at lag "
                         "1 / 2 / 3 / 5 frames ";
     for (size_t L : {1, 2, 3, 5})
       persistence_line << (L > 1 ? " / " : "")
-                       << format_number(L <= persistence->autocorrelation.size()
-                                            ? persistence->autocorrelation[L - 1]
+                       << format_number(L <= persistence.autocorrelation.size()
+                                            ? persistence.autocorrelation[L - 1]
                                             : std::numeric_limits<double>::quiet_NaN(),
                                         3);
-    persistence_line << ", integrated time " << format_number(persistence->tau, 3)
+    persistence_line << ", integrated time " << format_number(persistence.tau, 3)
                      << " frames; the *persistent* rows draw AR(1) kicks with the same time "
                         "(correlation "
-                     << format_number(rho, 3) << " between frames).\n\n";
-  } else if (rho > 0) {
+                     << format_number(kicks.rho, 3) << " between frames).\n\n";
+  } else if (kicks.rho > 0) {
     persistence_line << "The *persistent* rows draw AR(1) kicks with correlation "
-                     << format_number(rho, 3) << " between frames (given).\n\n";
+                     << format_number(kicks.rho, 3) << " between frames (given).\n\n";
   }
+  return persistence_line.str();
+}
+
+// The report's opening paragraph: what was solved and how it is scored.
+std::string setup_paragraph(const PredictabilityOptions& o, const std::string& location,
+                            int64_t count, const ConstantVelocity& cv, const BaseError& base) {
   std::string altered_list;
   for (const std::string& a : o.solver_set)
     altered_list += (altered_list.empty() ? "`" : ", `") + a + "`";
   std::ostringstream md;
   md << "## Predictability: the solver kicked by one-step errors\n\n"
-     << "`" << data.location() << "`, " << count << " trajectories, each solved again by UMLS-MPM "
+     << "`" << location << "`, " << count << " trajectories, each solved again by UMLS-MPM "
      << (o.solver_set.empty()
-             ? "(largest difference from the stored frames: " + sci(resolve_diff) + " m)"
+             ? "(largest difference from the stored frames: " + sci(cv.resolve_diff) + " m)"
              : "with the solver altered (" + altered_list +
                    "; the row *altered solver, no "
                    "kicks* scores that solve against the stored frames, like a rollout)")
@@ -726,29 +811,96 @@ Json predictability_experiment(const PredictabilityOptions& o) {
      << " time(s) per row with random rigid kicks of its free bodies: per frame a "
      << "velocity change whose displacement over one frame is the row's centre error per "
      << "component (RMS) plus a spin moving the body's nodes by the row's rotation error. Base "
-     << "error (1×): centre " << sci(centre) << " m, rotation " << sci(rotation) << " m ("
-     << base_source << "). *every*: kicked at frames 1 to the last but one, as a model errs at "
+     << "error (1×): centre " << sci(base.centre) << " m, rotation " << sci(base.rotation) << " m ("
+     << base.source << "). *every*: kicked at frames 1 to the last but one, as a model errs at "
      << "each step; *once*: at frame 1 only. RMSE against the unkicked solve over the "
      << "predicted frames 2 to the last, as bsms rollout scores a model; constant velocity "
-     << "(first velocity extrapolated): " << sci(cv_rmse) << " m. Independent kicks give the best "
+     << "(first velocity extrapolated): " << sci(cv.rmse) << " m. Independent kicks give the best "
      << "rollout such one-step errors allow; errors that persist from frame to frame, as a "
-     << "model's do, add up faster.\n\n"
-     << persistence_line.str() << table.str() << "\n"
-     << model_line.str();
-  for (const auto& [mode, sweep] : sweeps) {
+     << "model's do, add up faster.\n\n";
+  return md.str();
+}
+
+// The report's sentence per swept mode: the scale at which it reaches the target, if bracketed.
+std::string crossing_paragraphs(const PointTable& points, const Json& crossings,
+                                const PredictabilityOptions& o, const BaseError& base) {
+  std::ostringstream md;
+  for (const auto& [mode, sweep] : points.sweeps) {
     const double x = crossings[mode].is_number() ? crossings[mode].get<double>()
                                                  : std::numeric_limits<double>::quiet_NaN();
     if (std::isfinite(x))
       md << "*" << mode << "*: RMSE-all reaches " << format_number(o.target)
          << "× constant velocity at " << format_number(x, 3) << "× the base error (centre "
-         << sci(centre * x) << " m, rotation " << sci(rotation * x)
+         << sci(base.centre * x) << " m, rotation " << sci(base.rotation * x)
          << " m per frame; log-log interpolation).\n\n";
     else
       md << "*" << mode << "*: the rows do not bracket " << format_number(o.target)
          << "× constant velocity; widen --scales to find the one-step error that reaches it.\n\n";
   }
-  md << "![kicked solves](plots/predictability_rmse.png)\n";
-  write_text_atomic((out / "predictability.md").string(), md.str());
+  return md.str();
+}
+
+}  // namespace
+
+Json predictability_experiment(const PredictabilityOptions& o) {
+  check_options(o);
+  const BaseError base = resolve_base_error(o);
+  const generate::FamilyConfig family = load_family(o);
+  const Dataset data = Dataset::open_split(o.data, o.split);
+  check_dataset(data, base, o);
+  const std::vector<StoredTrajectory> stored = read_stored(data, family, o);
+  const auto count = static_cast<int64_t>(stored.size());
+  const KickPlan kicks = plan_kicks(o);
+
+  const fs::path out = o.out;
+  std::error_code ec;
+  fs::create_directories(out / "plots", ec);
+  if (ec) throw InputError(o.out + ": cannot create (" + ec.message() + ")");
+  const fs::path work = out / ".work";
+  fs::create_directories(work, ec);
+  const SolvedTrajectories solved = solve_trajectories(family, stored, kicks.points, base, o, work);
+
+  const ConstantVelocity cv = constant_velocity(solved.results);
+  PointTable points = tabulate_points(kicks.points, solved.results, cv.curve.size(), base);
+  Json crossings = Json::object();
+  for (const auto& [mode, sweep] : points.sweeps)
+    crossings[mode] = number_or_null(log_log_crossing(sweep.first, sweep.second, o.target));
+
+  Json result = {
+      {"experiment", "predictability"},
+      {"data", data.location()},
+      {"split", o.split},
+      {"trajectories", count},
+      {"draws", o.draws},
+      {"seed", o.seed},
+      {"threads", solved.threads},
+      {"wall_s", solved.wall_s},
+      {"base", {{"centre_m", base.centre}, {"rotation_m", base.rotation}, {"from", base.source}}},
+      {"resolve_max_abs_diff_m", cv.resolve_diff},
+      {"solver_set", o.solver_set},
+      {"rmse_all_constant_velocity", number_or_null(cv.rmse)},
+      {"constant_velocity_per_step", cv.curve},
+      {"points", points.rows},
+      {"target", o.target},
+      {"correlation", kicks.rho > 0 ? Json(kicks.rho) : Json(0.0)},
+      {"target_scale", crossings}};
+  if (kicks.persistence)
+    result["one_step_persistence"] = {{"autocorrelation", kicks.persistence->autocorrelation},
+                                      {"tau", kicks.persistence->tau},
+                                      {"rho_ar1", kicks.persistence->rho_ar1},
+                                      {"body_frames", kicks.persistence->body_frames}};
+  const std::string model_line =
+      base.model_rollout ? add_model_rollout(*base.model_rollout, o, result, points.curves) : "";
+  points.curves.push_back({"constant velocity", cv.curve, "lines lw 2 dt 2 lc rgb 'gray40'"});
+  experiments::plot_curves(out / "plots", "predictability_rmse",
+                           "Solver kicked by one-step body errors: RMSE against the unkicked solve",
+                           "RMSE (m)", true, points.curves);
+
+  const std::string md = setup_paragraph(o, data.location(), count, cv, base) +
+                         persistence_paragraph(o, kicks) + points.table + "\n" + model_line +
+                         crossing_paragraphs(points, crossings, o, base) +
+                         "![kicked solves](plots/predictability_rmse.png)\n";
+  write_text_atomic((out / "predictability.md").string(), md);
   write_json_atomic((out / "metrics.json").string(), result);
   return result;
 }

@@ -19,9 +19,9 @@
 #include "data/generate/trajectory_solver.hpp"
 #include "data/mpm/scene_config.hpp"
 #include "pipeline/experiments/node_interpolation.hpp"
-#include "pipeline/runs/json_measures.hpp"
 #include "pipeline/report/number_format.hpp"
 #include "pipeline/rollout/rollout_outputs.hpp"
+#include "pipeline/runs/json_measures.hpp"
 #include "pipeline/runs/run_files.hpp"
 
 namespace bsms {
@@ -364,32 +364,26 @@ SolverSetting parse_solver_setting(const std::string& text) {
   return s;
 }
 
-std::vector<SolverSetting> default_solver_settings(const Json& family,
+std::vector<SolverSetting> default_solver_settings(const Json& family, const std::string& file,
                                                    std::vector<std::string>& notes) {
   std::vector<SolverSetting> out;
   const auto text = [](double v) { return format_number(v, 6); };
-  const Json none;
-  const Json& scene = family.contains("scene") ? family["scene"] : none;
-  const Json* size = nullptr;
-  if (scene.contains("background") && scene["background"].contains("element_size"))
-    size = &scene["background"]["element_size"];
-  if (size && size->is_number()) {
+  // The family's base scene, typed (its defaults are the parser's).
+  const mpm::Scene scene = mpm::parse_base_scene(family.at("scene"), {file, "scene"});
+  if (scene.background.element_size > 0) {
     for (const auto& [label, factor] : {std::pair{"1.5", 1.5}, std::pair{"2", 2.0}})
-      out.push_back({std::string("background_x") + label,
-                     {"scene.background.element_size=" + text(size->get<double>() * factor)}});
+      out.push_back(
+          {std::string("background_x") + label,
+           {"scene.background.element_size=" + text(scene.background.element_size * factor)}});
   } else {
     notes.push_back(
         "No default background setting: the family has no scene.background.element_size; give "
         "--setting NAME=scene.background.KEY=VALUE.");
   }
-  const Json* solver = scene.contains("solver") ? &scene["solver"] : nullptr;
-  if (solver && solver->contains("dt") && (*solver)["dt"].is_number() &&
-      (*solver)["dt"].get<double>() > 0) {
+  if (scene.solver.dt > 0) {
     notes.push_back("No default CFL settings: the family's scene fixes the time step (dt).");
   } else {
-    const double cfl = solver && solver->contains("cfl") && (*solver)["cfl"].is_number()
-                           ? (*solver)["cfl"].get<double>()
-                           : mpm::SolverSpec{}.cfl;
+    const double cfl = scene.solver.cfl;
     double previous = cfl;
     for (const auto& [label, factor] : {std::pair{"2", 2.0}, std::pair{"3", 3.0}}) {
       const double value = std::min(cfl * factor, kLargestCfl);
@@ -419,10 +413,9 @@ std::vector<SolverSetting> default_solver_settings(const Json& family,
     }
   // The bodies family bounds a draw's estimated node count, which a coarser spacing lowers by
   // 1.5^dim: the bounds follow, so that the re-solve draws the same bodies.
-  if (!spacing.assignments.empty() && family["sample"].contains("nodes") && scene.contains("dim") &&
-      scene["dim"].is_number_integer()) {
+  if (!spacing.assignments.empty() && family["sample"].contains("nodes")) {
     const Json& v = family["sample"]["nodes"];
-    const double shrink = std::pow(1.5, -scene["dim"].get<int>());
+    const double shrink = std::pow(1.5, -scene.dim);
     if (v.is_number()) {
       spacing.assignments.push_back("sample.nodes=" + text(v.get<double>() * shrink));
     } else if (v.is_array() && v.size() == 2 && v[0].is_number() && v[1].is_number()) {
@@ -457,7 +450,9 @@ SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   if (!gen.contains("config") || !gen["config"].is_object())
     throw InputError(manifest.string() + ": key config: expected the family config object");
   SolverFrontier result;
-  if (settings.empty()) settings = default_solver_settings(gen["config"], result.notes);
+  if (settings.empty())
+    settings =
+        default_solver_settings(gen["config"], manifest.string() + " (config)", result.notes);
   if (settings.empty())
     throw InputError(manifest.string() + ": no default setting applies; give --setting");
   // Every setting checked (unknown keys, bad values) before any solve.

@@ -54,11 +54,12 @@ struct SolverSetting {
 // not scene.KEY=VALUE / sample.KEY=VALUE.
 SolverSetting parse_solver_setting(const std::string& text);
 
-// The settings used when none is given, each one knob of the family `family` (its JSON): the
+// The settings used when none is given, each one knob of the family `family` (its JSON, from
+// `file`; its base scene read by the scene parser, InputError when malformed): the
 // background element size x1.5 and x2, the CFL number x2 and x3 (capped at 1, the scene parser's
 // bound; absent when the scene fixes its time step), every sample key named spacing or *_spacing
 // x1.5 together. A knob the family lacks is skipped with a line in `notes`.
-std::vector<SolverSetting> default_solver_settings(const Json& family,
+std::vector<SolverSetting> default_solver_settings(const Json& family, const std::string& file,
                                                    std::vector<std::string>& notes);
 
 // One setting's solve of one trajectory.

@@ -292,6 +292,62 @@ void write_thesis_table(std::ostringstream& md, const std::vector<RunData>& runs
   }
 }
 
+// One run against the frontier's settings (`candidates`: frontier_candidates(f)), one line.
+void write_frontier_comparison(std::ostringstream& md, const RunData& r, const SolverFrontier& f,
+                               const std::vector<const FrontierSetting*>& candidates) {
+  const auto sci = [](double v) { return format_number(v, 2, Notation::kScientific); };
+  const RolloutMetrics& m = r.metrics;
+  const std::string name = fs::path(r.dir).filename().string();
+  if (m.eulerian) {
+    md << "- " << name << ": an Eulerian run, not compared with the Lagrangian solver.\n";
+    return;
+  }
+  // A diverged rollout has no RMSE-all: any setting at least as fast beats it.
+  double model_rmse = primary_rmse(m, m.rmse_all);
+  if (!std::isfinite(model_rmse)) model_rmse = std::numeric_limits<double>::infinity();
+  std::vector<const FrontierSetting*> beating;
+  for (const FrontierSetting* c : candidates)
+    if (c->ms_per_frame <= m.infer_ms_per_step && c->rmse_all < model_rmse) beating.push_back(c);
+  std::sort(beating.begin(), beating.end(),
+            [](const auto* a, const auto* b) { return a->rmse_all < b->rmse_all; });
+  md << "- " << name << " (" << format_number(m.infer_ms_per_step, 2, Notation::kFixed)
+     << " ms/step, RMSE-all " << sci(primary_rmse(m, m.rmse_all)) << " m): ";
+  if (beating.empty()) {
+    md << "no cheaper solver setting is both as fast and as accurate.";
+    // Say what is close: the cheapest setting that is more accurate, and its cost in model
+    // steps (a setting a hair slower but far more accurate is the reader's real alternative).
+    const FrontierSetting* cheapest = nullptr;
+    for (const FrontierSetting* c : candidates)
+      if (c->rmse_all < model_rmse && (!cheapest || c->ms_per_frame < cheapest->ms_per_frame))
+        cheapest = c;
+    if (cheapest && m.infer_ms_per_step > 0)
+      md << " The cheapest more accurate one, " << cheapest->name << ", costs "
+         << format_number(cheapest->ms_per_frame / m.infer_ms_per_step, 2, Notation::kFixed)
+         << "× the model's time per frame at " << format_number(cheapest->rmse_all / model_rmse, 3)
+         << "× its RMSE-all.";
+    // Settings left out for their unstable solves that would otherwise be the answer.
+    std::string shaky;
+    for (const FrontierSetting& s : f.settings)
+      if (s.unstable > 0 && std::isfinite(s.rmse_all) && s.rmse_all < model_rmse &&
+          (!cheapest || s.ms_per_frame < cheapest->ms_per_frame))
+        shaky += (shaky.empty() ? "" : ", ") + s.name + " (lost " + std::to_string(s.unstable) +
+                 " of " + std::to_string(f.trajectories) + " solves)";
+    if (!shaky.empty()) md << " Faster than that and more accurate, but unstable: " << shaky << ".";
+  } else {
+    const FrontierSetting& b = *beating.front();
+    md << "beaten by solver setting " << b.name << " ("
+       << format_number(b.ms_per_frame, 2, Notation::kFixed) << " ms/frame, RMSE-all "
+       << sci(b.rmse_all) << " m)";
+    for (size_t k = 1; k < beating.size(); ++k)
+      md << (k == 1 ? "; also by " : ", ") << beating[k]->name;
+    md << ".";
+  }
+  if (!same_data(m.data, f.data))
+    md << " (Rolled out on `" << m.data << "`, the frontier measured on `" << f.data
+       << "`: other trajectories.)";
+  md << "\n";
+}
+
 // The frontier as a table, and one sentence per run: is a solver setting at least as fast as the
 // model (ms/frame <= its inference ms/step) and more accurate (lower RMSE-all)?
 void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
@@ -320,63 +376,11 @@ void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
         "model's inference ms/step with its own threads; a setting with unstable solves is not "
         "counted):\n\n";
   const std::vector<const FrontierSetting*> candidates = frontier_candidates(f);
-  for (const auto& r : runs) {
-    const RolloutMetrics& m = r.metrics;
-    const std::string name = fs::path(r.dir).filename().string();
-    if (m.eulerian) {
-      md << "- " << name << ": an Eulerian run, not compared with the Lagrangian solver.\n";
-      continue;
-    }
-    // A diverged rollout has no RMSE-all: any setting at least as fast beats it.
-    double model_rmse = primary_rmse(m, m.rmse_all);
-    if (!std::isfinite(model_rmse)) model_rmse = std::numeric_limits<double>::infinity();
-    std::vector<const FrontierSetting*> beating;
-    for (const FrontierSetting* c : candidates)
-      if (c->ms_per_frame <= m.infer_ms_per_step && c->rmse_all < model_rmse) beating.push_back(c);
-    std::sort(beating.begin(), beating.end(),
-              [](const auto* a, const auto* b) { return a->rmse_all < b->rmse_all; });
-    md << "- " << name << " (" << format_number(m.infer_ms_per_step, 2, Notation::kFixed)
-       << " ms/step, RMSE-all " << sci(primary_rmse(m, m.rmse_all)) << " m): ";
-    if (beating.empty()) {
-      md << "no cheaper solver setting is both as fast and as accurate.";
-      // Say what is close: the cheapest setting that is more accurate, and its cost in model
-      // steps (a setting a hair slower but far more accurate is the reader's real alternative).
-      const FrontierSetting* cheapest = nullptr;
-      for (const FrontierSetting* c : candidates)
-        if (c->rmse_all < model_rmse && (!cheapest || c->ms_per_frame < cheapest->ms_per_frame))
-          cheapest = c;
-      if (cheapest && m.infer_ms_per_step > 0)
-        md << " The cheapest more accurate one, " << cheapest->name << ", costs "
-           << format_number(cheapest->ms_per_frame / m.infer_ms_per_step, 2, Notation::kFixed)
-           << "× the model's time per frame at "
-           << format_number(cheapest->rmse_all / model_rmse, 3) << "× its RMSE-all.";
-      // Settings left out for their unstable solves that would otherwise be the answer.
-      std::string shaky;
-      for (const FrontierSetting& s : f.settings)
-        if (s.unstable > 0 && std::isfinite(s.rmse_all) && s.rmse_all < model_rmse &&
-            (!cheapest || s.ms_per_frame < cheapest->ms_per_frame))
-          shaky += (shaky.empty() ? "" : ", ") + s.name + " (lost " + std::to_string(s.unstable) +
-                   " of " + std::to_string(f.trajectories) + " solves)";
-      if (!shaky.empty())
-        md << " Faster than that and more accurate, but unstable: " << shaky << ".";
-    } else {
-      const FrontierSetting& b = *beating.front();
-      md << "beaten by solver setting " << b.name << " ("
-         << format_number(b.ms_per_frame, 2, Notation::kFixed) << " ms/frame, RMSE-all "
-         << sci(b.rmse_all) << " m)";
-      for (size_t k = 1; k < beating.size(); ++k)
-        md << (k == 1 ? "; also by " : ", ") << beating[k]->name;
-      md << ".";
-    }
-    if (!same_data(m.data, f.data))
-      md << " (Rolled out on `" << m.data << "`, the frontier measured on `" << f.data
-         << "`: other trajectories.)";
-    md << "\n";
-  }
+  for (const auto& r : runs) write_frontier_comparison(md, r, f, candidates);
 }
-}  // namespace
 
-std::string write_report(const ReportRequest& request) {
+// The runs named in the request, with their rollout metrics and training logs.
+std::vector<RunData> read_runs(const ReportRequest& request) {
   if (request.runs.empty()) throw InputError("report: give at least one run folder");
   const std::string& rollout = request.rollout;
   if (rollout.empty() || rollout.find('/') != std::string::npos || rollout == "." ||
@@ -400,16 +404,11 @@ std::string write_report(const ReportRequest& request) {
     r.loss_window = training_loss_window(r.log.size());
     runs.push_back(std::move(r));
   }
-  std::optional<SolverFrontier> frontier;
-  if (!request.solver_frontier.empty()) frontier = read_solver_frontier(request.solver_frontier);
-  const fs::path out = request.out;
-  const fs::path plots = out / "plots";
-  std::error_code ec;
-  fs::create_directories(plots, ec);
-  if (ec)
-    throw InputError(out.string() + ": cannot create the report folder (" + ec.message() + ")");
+  return runs;
+}
 
-  // --- data files for the plots
+// Per run: PLOTS/rmse_R.dat (step, RMSE), loss_R.dat and valid_R.dat (the training log).
+void write_curve_data(const fs::path& plots, const std::vector<RunData>& runs) {
   for (size_t r = 0; r < runs.size(); ++r) {
     std::ofstream curve(plots / ("rmse_" + std::to_string(r) + ".dat"));
     const std::vector<double>& steps = runs[r].metrics.per_step(runs[r].metrics.primary_field());
@@ -431,149 +430,165 @@ std::string write_report(const ReportRequest& request) {
         loss << "NaN\n";
       if (!row.has_valid()) continue;
       valid_out << row.wall_s << ' ' << row.valid_loss << ' ';
-      if (std::isfinite(row.valid_baseline))
-        valid_out << row.valid_baseline << '\n';
+      if (std::isfinite(row.valid_zero_prediction))
+        valid_out << row.valid_zero_prediction << '\n';
       else
-        valid_out << "NaN\n";  // a log written before the baseline column
+        valid_out << "NaN\n";
     }
   }
-  double solver_ms = -1;
-  {
-    std::ofstream speed(plots / "speed.dat");
-    for (size_t r = 0; r < runs.size(); ++r) {
-      const RolloutMetrics& m = runs[r].metrics;
-      speed << '"' << runs[r].label << "\" "
-            << format_number(m.infer_ms_per_step, 6, Notation::kFixed) << ' '
-            << format_number(primary_rmse(m, m.rmse_all), 8, Notation::kFixed) << '\n';
-      if (m.solver_ms_per_frame) solver_ms = *m.solver_ms_per_frame;
-    }
-    // The solver is the reference: error 0 by definition.
-    if (solver_ms > 0) speed << "\"UMLS-MPM solver (ground truth)\" " << solver_ms << " 0\n";
-    // A second data block (gnuplot index 1): the frontier's points (not a line: a setting may be
-    // cheaper and worse than another), cheapest last.
-    if (frontier) {
-      std::vector<const FrontierSetting*> points = {&frontier->ground_truth};
-      for (const auto& s : frontier->settings) points.push_back(&s);
-      std::sort(points.begin(), points.end(),
-                [](const auto* a, const auto* b) { return a->ms_per_frame > b->ms_per_frame; });
-      speed << "\n\n";
-      for (const FrontierSetting* s : points) {
-        if (!std::isfinite(s->ms_per_frame) || !std::isfinite(s->rmse_all)) continue;
-        speed << '"' << s->name
-              << (s->unstable > 0 ? " (" + std::to_string(s->unstable) + " unstable)"
-                                  : std::string())
-              << "\" " << format_number(s->ms_per_frame, 6, Notation::kFixed) << ' '
-              << format_number(s->rmse_all, 8, Notation::kFixed) << '\n';
-      }
-    }
-  }
+}
 
-  // --- plots
-  std::vector<std::string> images;
-  {
-    std::ostringstream g;
-    g << gnuplot_png_preamble((plots / "rmse_over_steps.png").string())
-      << "set title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
-         "'predicted step'"
-         "\nset ylabel 'RMSE (m)'\nset logscale y\nset key left top\nset grid\nplot ";
-    for (size_t r = 0; r < runs.size(); ++r)
-      g << (r ? ", " : "")
-        << gnuplot_quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
-        << " using 1:2 with lines lw 2 title " << gnuplot_quoted(runs[r].label);
-    g << '\n';
-    if (draw_plot(plots / "rmse_over_steps.gp", g.str())) images.push_back("rmse_over_steps.png");
+// PLOTS/speed.dat: each run's inference ms/step and RMSE-all, the solver's; with a frontier, its
+// settings as a second data block.
+void write_speed_data(const fs::path& plots, const std::vector<RunData>& runs,
+                      const std::optional<SolverFrontier>& frontier) {
+  double solver_ms = -1;
+  std::ofstream speed(plots / "speed.dat");
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const RolloutMetrics& m = runs[r].metrics;
+    speed << '"' << runs[r].label << "\" "
+          << format_number(m.infer_ms_per_step, 6, Notation::kFixed) << ' '
+          << format_number(primary_rmse(m, m.rmse_all), 8, Notation::kFixed) << '\n';
+    if (m.solver_ms_per_frame) solver_ms = *m.solver_ms_per_frame;
   }
-  // Overlap between bodies over steps, predicted and true, beside the inverted cells.
-  if (std::any_of(runs.begin(), runs.end(), [](const auto& r) {
+  // The solver is the reference: error 0 by definition.
+  if (solver_ms > 0) speed << "\"UMLS-MPM solver (ground truth)\" " << solver_ms << " 0\n";
+  // A second data block (gnuplot index 1): the frontier's points (not a line: a setting may be
+  // cheaper and worse than another), cheapest last.
+  if (frontier) {
+    std::vector<const FrontierSetting*> points = {&frontier->ground_truth};
+    for (const auto& s : frontier->settings) points.push_back(&s);
+    std::sort(points.begin(), points.end(),
+              [](const auto* a, const auto* b) { return a->ms_per_frame > b->ms_per_frame; });
+    speed << "\n\n";
+    for (const FrontierSetting* s : points) {
+      if (!std::isfinite(s->ms_per_frame) || !std::isfinite(s->rmse_all)) continue;
+      speed << '"' << s->name
+            << (s->unstable > 0 ? " (" + std::to_string(s->unstable) + " unstable)" : std::string())
+            << "\" " << format_number(s->ms_per_frame, 6, Notation::kFixed) << ' '
+            << format_number(s->rmse_all, 8, Notation::kFixed) << '\n';
+    }
+  }
+}
+
+void plot_rmse_over_steps(const fs::path& plots, const std::vector<RunData>& runs,
+                          std::vector<std::string>& images) {
+  std::ostringstream g;
+  g << gnuplot_png_preamble((plots / "rmse_over_steps.png").string())
+    << "set title 'Rollout RMSE of world position over steps (test split)'\nset xlabel "
+       "'predicted step'"
+       "\nset ylabel 'RMSE (m)'\nset logscale y\nset key left top\nset grid\nplot ";
+  for (size_t r = 0; r < runs.size(); ++r)
+    g << (r ? ", " : "")
+      << gnuplot_quoted((plots / ("rmse_" + std::to_string(r) + ".dat")).string())
+      << " using 1:2 with lines lw 2 title " << gnuplot_quoted(runs[r].label);
+  g << '\n';
+  if (draw_plot(plots / "rmse_over_steps.gp", g.str())) images.push_back("rmse_over_steps.png");
+}
+
+// DATA: step, overlap predicted, overlap true, inverted cells.
+void write_validity_data(const fs::path& data, const RolloutMetrics& m) {
+  std::ofstream f(data);
+  const std::vector<double>& model = m.validity->model.overlap->per_step;
+  const std::vector<double> none;
+  const std::vector<double>& truth =
+      m.validity->truth.overlap ? m.validity->truth.overlap->per_step : none;
+  for (size_t s = 0; s < model.size(); ++s) {
+    const double t = s < truth.size() ? truth[s] : std::nan("");
+    const double inv =
+        s < m.inverted_cells_per_step.size() ? m.inverted_cells_per_step[s] : std::nan("");
+    f << s + 1;
+    for (const double value : {model[s], t, inv}) {
+      f << ' ';
+      if (std::isfinite(value))
+        f << value;
+      else
+        f << "NaN";
+    }
+    f << '\n';
+  }
+}
+
+// Overlap between bodies over steps, predicted and true, beside the inverted cells.
+void plot_validity_over_steps(const fs::path& plots, const std::vector<RunData>& runs,
+                              std::vector<std::string>& images) {
+  if (!std::any_of(runs.begin(), runs.end(), [](const auto& r) {
         return r.metrics.validity && r.metrics.validity->model.overlap;
-      })) {
-    std::ostringstream g;
-    g << gnuplot_png_preamble((plots / "validity_over_steps.png").string())
-      << "set title 'Overlap between bodies and inverted cells over steps (test split)'\n"
-         "set xlabel 'predicted step'\nset ylabel 'fraction of the cells (area or volume)'\n"
-         "set key left top\nset grid\nplot ";
-    bool first = true;
-    for (size_t r = 0; r < runs.size(); ++r) {
-      const RolloutMetrics& m = runs[r].metrics;
-      if (!m.validity || !m.validity->model.overlap) continue;
-      const fs::path data = plots / ("validity_" + std::to_string(r) + ".dat");
-      {
-        std::ofstream f(data);  // step, overlap predicted, overlap true, inverted cells
-        const std::vector<double>& model = m.validity->model.overlap->per_step;
-        const std::vector<double> none;
-        const std::vector<double>& truth =
-            m.validity->truth.overlap ? m.validity->truth.overlap->per_step : none;
-        for (size_t s = 0; s < model.size(); ++s) {
-          const double t = s < truth.size() ? truth[s] : std::nan("");
-          const double inv =
-              s < m.inverted_cells_per_step.size() ? m.inverted_cells_per_step[s] : std::nan("");
-          f << s + 1;
-          for (const double value : {model[s], t, inv}) {
-            f << ' ';
-            if (std::isfinite(value))
-              f << value;
-            else
-              f << "NaN";
-          }
-          f << '\n';
-        }
-      }
-      const std::string q = gnuplot_quoted(data.string());
-      g << (first ? "" : ", ") << q << " using 1:2 with lines lw 2 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + ": overlap") << ", " << q
-        << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + ": overlap of the truth") << ", " << q
-        << " using 1:4 with lines lw 1 dt 3 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + ": inverted cells");
-      first = false;
-    }
-    g << '\n';
-    if (draw_plot(plots / "validity_over_steps.gp", g.str()))
-      images.push_back("validity_over_steps.png");
+      }))
+    return;
+  std::ostringstream g;
+  g << gnuplot_png_preamble((plots / "validity_over_steps.png").string())
+    << "set title 'Overlap between bodies and inverted cells over steps (test split)'\n"
+       "set xlabel 'predicted step'\nset ylabel 'fraction of the cells (area or volume)'\n"
+       "set key left top\nset grid\nplot ";
+  bool first = true;
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const RolloutMetrics& m = runs[r].metrics;
+    if (!m.validity || !m.validity->model.overlap) continue;
+    const fs::path data = plots / ("validity_" + std::to_string(r) + ".dat");
+    write_validity_data(data, m);
+    const std::string q = gnuplot_quoted(data.string());
+    g << (first ? "" : ", ") << q << " using 1:2 with lines lw 2 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + ": overlap") << ", " << q
+      << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + ": overlap of the truth") << ", " << q
+      << " using 1:4 with lines lw 1 dt 3 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + ": inverted cells");
+    first = false;
   }
-  {
-    std::ostringstream g;
-    g << gnuplot_png_preamble((plots / "speed_vs_error.png").string())
-      << "set title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
-         "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
-         "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
-         "0.1, graph 0.05\n";
-    const std::string dat = gnuplot_quoted((plots / "speed.dat").string());
-    g << "plot " << dat << (frontier ? " index 0" : "")
-      << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle";
-    if (frontier)
-      g << ", " << dat
-        << " index 1 using 2:3 with points pt 5 ps 1.5 lc rgb 'dark-red' title "
-           "'UMLS-MPM at cheaper settings', "
-        << dat << " index 1 using 2:3:1 with labels offset 1,-1 tc rgb 'dark-red' notitle";
-    g << '\n';
-    if (draw_plot(plots / "speed_vs_error.gp", g.str())) images.push_back("speed_vs_error.png");
+  g << '\n';
+  if (draw_plot(plots / "validity_over_steps.gp", g.str()))
+    images.push_back("validity_over_steps.png");
+}
+
+void plot_speed_vs_error(const fs::path& plots, bool frontier, std::vector<std::string>& images) {
+  std::ostringstream g;
+  g << gnuplot_png_preamble((plots / "speed_vs_error.png").string())
+    << "set title 'Speed against error: ms per frame vs rollout RMSE (all steps)'\n"
+       "set xlabel 'wall time per frame (ms, 2 cores)'\nset ylabel 'RMSE of world position (m)'\n"
+       "set logscale x\nset grid\nset key left top\nset offsets graph 0.15, graph 0.3, graph "
+       "0.1, graph 0.05\n";
+  const std::string dat = gnuplot_quoted((plots / "speed.dat").string());
+  g << "plot " << dat << (frontier ? " index 0" : "")
+    << " using 2:3:1 with labels point pt 7 ps 2 offset 1,1 notitle";
+  if (frontier)
+    g << ", " << dat
+      << " index 1 using 2:3 with points pt 5 ps 1.5 lc rgb 'dark-red' title "
+         "'UMLS-MPM at cheaper settings', "
+      << dat << " index 1 using 2:3:1 with labels offset 1,-1 tc rgb 'dark-red' notitle";
+  g << '\n';
+  if (draw_plot(plots / "speed_vs_error.gp", g.str())) images.push_back("speed_vs_error.png");
+}
+
+void plot_loss_vs_wall(const fs::path& plots, const std::vector<RunData>& runs,
+                       std::vector<std::string>& images) {
+  std::ostringstream g;
+  g << gnuplot_png_preamble((plots / "loss_vs_wall.png").string())
+    << "set title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
+       "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
+  // Training losses first, validation and its zero-prediction reference drawn over them.
+  for (size_t r = 0; r < runs.size(); ++r)
+    g << (r ? ", " : "")
+      << gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string())
+      << " using 1:3 with lines lw 1 dt 3 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + " train (mean of " + std::to_string(runs[r].loss_window) +
+                        " steps)");
+  for (size_t r = 0; r < runs.size(); ++r) {
+    const std::string valid =
+        gnuplot_quoted((plots / ("valid_" + std::to_string(r) + ".dat")).string());
+    g << ", " << valid << " using 1:2 with linespoints lw 2 pt 7 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + " valid") << ", " << valid
+      << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
+      << gnuplot_quoted(runs[r].label + " valid, predicting zero");
   }
-  {
-    std::ostringstream g;
-    g << gnuplot_png_preamble((plots / "loss_vs_wall.png").string())
-      << "set title 'Training loss against wall time'\nset xlabel 'wall time (s)'\n"
-         "set ylabel 'loss (normalised MSE)'\nset logscale y\nset grid\nplot ";
-    // Training losses first, validation and its zero-prediction reference drawn over them.
-    for (size_t r = 0; r < runs.size(); ++r)
-      g << (r ? ", " : "")
-        << gnuplot_quoted((plots / ("loss_" + std::to_string(r) + ".dat")).string())
-        << " using 1:3 with lines lw 1 dt 3 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " train (mean of " + std::to_string(runs[r].loss_window) +
-                          " steps)");
-    for (size_t r = 0; r < runs.size(); ++r) {
-      const std::string valid =
-          gnuplot_quoted((plots / ("valid_" + std::to_string(r) + ".dat")).string());
-      g << ", " << valid << " using 1:2 with linespoints lw 2 pt 7 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " valid") << ", " << valid
-        << " using 1:3 with lines lw 2 dt 2 lc " << r + 1 << " title "
-        << gnuplot_quoted(runs[r].label + " valid, predicting zero");
-    }
-    g << '\n';
-    if (draw_plot(plots / "loss_vs_wall.gp", g.str())) images.push_back("loss_vs_wall.png");
-  }
-  // Ground truth next to prediction: first trajectory of each run, three frames, and an animation
-  // of every frame.
+  g << '\n';
+  if (draw_plot(plots / "loss_vs_wall.gp", g.str())) images.push_back("loss_vs_wall.png");
+}
+
+// Ground truth next to prediction: first trajectory of each run, three frames, and an animation
+// of every frame.
+void plot_rollouts(const fs::path& plots, const std::vector<RunData>& runs,
+                   const std::string& rollout, std::vector<std::string>& images) {
   for (size_t r = 0; r < runs.size(); ++r) {
     const std::string& split = runs[r].metrics.split;
     const fs::path h5 = fs::path(runs[r].dir) / rollout / (split + ".h5");
@@ -610,9 +625,12 @@ std::string write_report(const ReportRequest& request) {
                         runs[r].label + ", trajectory 0: truth (grey), prediction (red)"))
       images.push_back(animation + ".gif");
   }
+}
 
-  // --- report.md
-  std::ostringstream md;
+// The report's title and its main table: a row per run (timings, RMSE, memory), with a note
+// under each diverged run.
+void write_run_table(std::ostringstream& md, const std::string& title,
+                     const std::vector<RunData>& runs) {
   // What the RMSE columns measure: positions (Lagrangian) or velocities (Eulerian), against the
   // dataset's stored frames (UMLS-MPM's for bsms data, the publisher's solver's for public data).
   bool any_eulerian = false, any_lagrangian = false;
@@ -622,7 +640,7 @@ std::string write_report(const ReportRequest& request) {
                                      "(Eulerian runs)"
                                : any_eulerian ? "velocities"
                                               : "world positions (m)";
-  md << "# " << request.title << "\n\n"
+  md << "# " << title << "\n\n"
      << "Per model, as in the BSMS-GNN paper's Tables 4.5–4.6. Times are medians on this machine; "
         "RMSE is the root mean squared error of predicted "
      << measured
@@ -657,22 +675,23 @@ std::string write_report(const ReportRequest& request) {
       md << "_\n";
     }
   }
-  {
-    // Which CPU timed the figures above (a run rolled out elsewhere says so).
-    std::vector<std::string> cpus;
-    for (const auto& r : runs)
-      if (std::find(cpus.begin(), cpus.end(), r.metrics.cpu) == cpus.end())
-        cpus.push_back(r.metrics.cpu);
-    md << "\nTimed on: ";
-    for (size_t k = 0; k < cpus.size(); ++k)
-      md << (k ? "; " : "") << (cpus[k].empty() ? "CPU not recorded" : cpus[k]);
-    md << ".\n";
-  }
-  write_horizon_table(md, runs);
-  write_thesis_table(md, runs);
-  if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
-  // What a model must beat: extrapolating the first velocity of each test trajectory.
-  const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);
+}
+
+// Which CPU timed the figures above (a run rolled out elsewhere says so).
+void write_cpus(std::ostringstream& md, const std::vector<RunData>& runs) {
+  std::vector<std::string> cpus;
+  for (const auto& r : runs)
+    if (std::find(cpus.begin(), cpus.end(), r.metrics.cpu) == cpus.end())
+      cpus.push_back(r.metrics.cpu);
+  md << "\nTimed on: ";
+  for (size_t k = 0; k < cpus.size(); ++k)
+    md << (k ? "; " : "") << (cpus[k].empty() ? "CPU not recorded" : cpus[k]);
+  md << ".\n";
+}
+
+// What a model must beat, in the first run's data: holding the first frame (Eulerian) and
+// extrapolating the first velocity of each test trajectory (`cv`: its RMSE-all, or NaN).
+void write_references(std::ostringstream& md, const std::vector<RunData>& runs, double cv) {
   const double held = RolloutMetrics::rmse(runs.front().metrics.rmse_all_persistence, "velocity");
   if (std::isfinite(held))
     md << "\nEulerian runs: RMSE columns are the velocity's (per-field figures in each run's "
@@ -685,69 +704,109 @@ std::string write_report(const ReportRequest& request) {
        << format_number(cv, 2, Notation::kScientific)
        << " m. Inverted cells: the largest fraction of predicted cells turned inside out at a "
           "step (the solver never inverts one).\n";
-  // How far each ratio could move on another draw of test trajectories: RMSE-all over a few dozen
-  // trajectories of colliding bodies is carried by the few whose collisions went another way.
-  if (std::any_of(runs.begin(), runs.end(),
-                  [](const auto& r) { return r.metrics.per_trajectory.has_value(); })) {
-    const RolloutMetrics& first = runs.front().metrics;
-    const std::string first_name = fs::path(runs.front().dir).filename().string();
-    md << "\nRatios with 95 % intervals from resampling the test trajectories (percentile "
-          "bootstrap, 4,000 draws; against the first run paired: each draw takes the same "
-          "trajectories of both, so what the two runs share cancels).\n\n"
-       << "| run | RMSE-all / constant velocity | 95 % interval | RMSE-all / " << first_name
-       << "'s | 95 % interval (paired) |\n|---|---|---|---|---|\n";
-    const auto interval = [](const std::optional<RatioInterval>& i) {
-      return i ? format_number(i->lo, 3, Notation::kFixed) + "–" +
-                     format_number(i->hi, 3, Notation::kFixed)
-               : std::string("–");
-    };
-    for (const auto& r : runs) {
-      const RolloutMetrics& m = r.metrics;
-      const double all = primary_rmse(m, m.rmse_all);
-      const double own_cv = or_nan(m.rmse_all_constant_velocity);
-      std::optional<RatioInterval> paired;
-      double against_first = std::nan("");
-      // Paired only on the same test trajectories, rolled out over the same steps.
-      if (&r != &runs.front() && m.per_trajectory && first.per_trajectory && m.data == first.data &&
-          m.split == first.split && m.per_trajectory->steps == first.per_trajectory->steps) {
-        against_first = all / primary_rmse(first, first.rmse_all);
-        paired = bootstrap_ratio_interval(m.per_trajectory->steps, m.per_trajectory->model,
-                                          first.per_trajectory->model);
-      }
-      md << "| " << fs::path(r.dir).filename().string() << " | "
-         << format_number(all / own_cv, 3, Notation::kFixed) << " | "
-         << interval(m.rmse_all_ratio_interval) << " | "
-         << format_number(against_first, 3, Notation::kFixed) << " | " << interval(paired)
-         << " |\n";
+}
+
+// How far each ratio could move on another draw of test trajectories: RMSE-all over a few dozen
+// trajectories of colliding bodies is carried by the few whose collisions went another way.
+void write_ratio_intervals(std::ostringstream& md, const std::vector<RunData>& runs) {
+  if (!std::any_of(runs.begin(), runs.end(),
+                   [](const auto& r) { return r.metrics.per_trajectory.has_value(); }))
+    return;
+  const RolloutMetrics& first = runs.front().metrics;
+  const std::string first_name = fs::path(runs.front().dir).filename().string();
+  md << "\nRatios with 95 % intervals from resampling the test trajectories (percentile "
+        "bootstrap, 4,000 draws; against the first run paired: each draw takes the same "
+        "trajectories of both, so what the two runs share cancels).\n\n"
+     << "| run | RMSE-all / constant velocity | 95 % interval | RMSE-all / " << first_name
+     << "'s | 95 % interval (paired) |\n|---|---|---|---|---|\n";
+  const auto interval = [](const std::optional<RatioInterval>& i) {
+    return i ? format_number(i->lo, 3, Notation::kFixed) + "–" +
+                   format_number(i->hi, 3, Notation::kFixed)
+             : std::string("–");
+  };
+  for (const auto& r : runs) {
+    const RolloutMetrics& m = r.metrics;
+    const double all = primary_rmse(m, m.rmse_all);
+    const double own_cv = or_nan(m.rmse_all_constant_velocity);
+    std::optional<RatioInterval> paired;
+    double against_first = std::nan("");
+    // Paired only on the same test trajectories, rolled out over the same steps.
+    if (&r != &runs.front() && m.per_trajectory && first.per_trajectory && m.data == first.data &&
+        m.split == first.split && m.per_trajectory->steps == first.per_trajectory->steps) {
+      against_first = all / primary_rmse(first, first.rmse_all);
+      paired = bootstrap_ratio_interval(m.per_trajectory->steps, m.per_trajectory->model,
+                                        first.per_trajectory->model);
     }
+    md << "| " << fs::path(r.dir).filename().string() << " | "
+       << format_number(all / own_cv, 3, Notation::kFixed) << " | "
+       << interval(m.rmse_all_ratio_interval) << " | "
+       << format_number(against_first, 3, Notation::kFixed) << " | " << interval(paired) << " |\n";
   }
+}
+
+// Where the position error lies, body by body; `cv`: the first run's constant-velocity RMSE-all.
+void write_motion_parts(std::ostringstream& md, const std::vector<RunData>& runs, double cv) {
+  if (!std::any_of(runs.begin(), runs.end(),
+                   [](const auto& r) { return r.metrics.rmse_all_parts; }))
+    return;
+  md << "\nWhere the position error lies, body by body (RMSE-all split into each body's "
+        "centre, its rotation about the centre and its deformation; the squares add up to "
+        "RMSE-all's). On colliding bodies the centre part is mostly which way they leave a "
+        "collision; the deformation part measures the elastic response.\n\n"
+     << "| run | RMSE-all | centre | rotation | deformation |\n|---|---|---|---|---|\n";
+  const auto row = [&md](const std::string& name, double all, const MotionRmse& p) {
+    md << "| " << name << " | " << format_number(all, 2, Notation::kScientific) << " | "
+       << format_number(p.centre, 2, Notation::kScientific) << " | "
+       << format_number(p.rotation, 2, Notation::kScientific) << " | "
+       << format_number(p.deformation, 2, Notation::kScientific) << " |\n";
+  };
+  for (const auto& r : runs)
+    if (r.metrics.rmse_all_parts)
+      row(fs::path(r.dir).filename().string(), primary_rmse(r.metrics, r.metrics.rmse_all),
+          *r.metrics.rmse_all_parts);
+  const RolloutMetrics& first = runs.front().metrics;
+  if (first.rmse_all_parts_constant_velocity)
+    row("constant velocity (" + fs::path(runs.front().dir).filename().string() + "'s data)", cv,
+        *first.rmse_all_parts_constant_velocity);
+  if (first.rmse_all_deformation_rigid)
+    md << "| rigid bodies (each body's first shape held) | – | – | – | "
+       << format_number(*first.rmse_all_deformation_rigid, 2, Notation::kScientific) << " |\n";
+}
+}  // namespace
+
+std::string write_report(const ReportRequest& request) {
+  const std::vector<RunData> runs = read_runs(request);
+  std::optional<SolverFrontier> frontier;
+  if (!request.solver_frontier.empty()) frontier = read_solver_frontier(request.solver_frontier);
+  const fs::path out = request.out;
+  const fs::path plots = out / "plots";
+  std::error_code ec;
+  fs::create_directories(plots, ec);
+  if (ec)
+    throw InputError(out.string() + ": cannot create the report folder (" + ec.message() + ")");
+
+  write_curve_data(plots, runs);
+  write_speed_data(plots, runs, frontier);
+
+  std::vector<std::string> images;
+  plot_rmse_over_steps(plots, runs, images);
+  plot_validity_over_steps(plots, runs, images);
+  plot_speed_vs_error(plots, frontier.has_value(), images);
+  plot_loss_vs_wall(plots, runs, images);
+  plot_rollouts(plots, runs, request.rollout, images);
+
+  std::ostringstream md;
+  write_run_table(md, request.title, runs);
+  write_cpus(md, runs);
+  write_horizon_table(md, runs);
+  write_thesis_table(md, runs);
+  if (frontier) write_frontier(md, runs, *frontier, request.solver_frontier);
+  const double cv = or_nan(runs.front().metrics.rmse_all_constant_velocity);
+  write_references(md, runs, cv);
+  write_ratio_intervals(md, runs);
   write_validity(md, runs);
   write_training_cost(md, runs);
-  if (std::any_of(runs.begin(), runs.end(),
-                  [](const auto& r) { return r.metrics.rmse_all_parts; })) {
-    md << "\nWhere the position error lies, body by body (RMSE-all split into each body's "
-          "centre, its rotation about the centre and its deformation; the squares add up to "
-          "RMSE-all's). On colliding bodies the centre part is mostly which way they leave a "
-          "collision; the deformation part measures the elastic response.\n\n"
-       << "| run | RMSE-all | centre | rotation | deformation |\n|---|---|---|---|---|\n";
-    const auto row = [&md](const std::string& name, double all, const MotionRmse& p) {
-      md << "| " << name << " | " << format_number(all, 2, Notation::kScientific) << " | "
-         << format_number(p.centre, 2, Notation::kScientific) << " | "
-         << format_number(p.rotation, 2, Notation::kScientific) << " | "
-         << format_number(p.deformation, 2, Notation::kScientific) << " |\n";
-    };
-    for (const auto& r : runs)
-      if (r.metrics.rmse_all_parts)
-        row(fs::path(r.dir).filename().string(), primary_rmse(r.metrics, r.metrics.rmse_all),
-            *r.metrics.rmse_all_parts);
-    const RolloutMetrics& first = runs.front().metrics;
-    if (first.rmse_all_parts_constant_velocity)
-      row("constant velocity (" + fs::path(runs.front().dir).filename().string() + "'s data)", cv,
-          *first.rmse_all_parts_constant_velocity);
-    if (first.rmse_all_deformation_rigid)
-      md << "| rigid bodies (each body's first shape held) | – | – | – | "
-         << format_number(*first.rmse_all_deformation_rigid, 2, Notation::kScientific) << " |\n";
-  }
+  write_motion_parts(md, runs, cv);
   md << "\n";
   for (const auto& image : images) md << "![" << image << "](plots/" << image << ")\n\n";
   const fs::path report = out / "report.md";

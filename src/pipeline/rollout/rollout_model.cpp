@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "core/error.hpp"
+#include "pipeline/adapters/scene_features.hpp"
 
 namespace bsms {
 
@@ -12,17 +13,17 @@ RolloutModel open_rollout_model(const RunFolder& folder, const Dataset& data,
   RolloutModel m;
   m.model_type = folder.config.model.type;
   m.spec = walls_for_scene(lagrangian_spec_from_json(folder.features_resolved, folder.config_path),
-                           data.scene());
-  m.simulator = std::make_shared<LearnedSimulator>(m.spec, folder.config.model, folder.levels);
+                           data.parsed_scene());
+  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
+  m.simulator = std::make_shared<LearnedSimulator>(m.adapter->model_shape(), folder.config.model,
+                                                   folder.levels);
   load_checkpoint(run_checkpoint_path(folder.dir), *m.simulator, nullptr);
   m.simulator->eval();
-  std::vector<std::string> cache_dirs = {(fs::path(data_dir) / "multilevel").string(),
-                                         (fs::path(folder.dir) / "multilevel").string()};
+  const std::vector<std::string> cache_dirs = multilevel_cache_dirs(data_dir, folder.dir);
   std::error_code ec;
   for (const auto& d : cache_dirs) fs::create_directories(d, ec);
   m.seeding = seeding.empty() ? folder.config.model.seeding : parse_seeding(seeding);
   m.store = std::make_unique<GraphStore>(m.seeding, folder.levels, cache_dirs);
-  m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
   return m;
 }
 

@@ -9,10 +9,10 @@
 #include <vector>
 
 #include "data/dataset/dataset.hpp"
-#include "pipeline/graphs/graph_store.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
-#include "pipeline/runs/run_files.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/graphs/graph_store.hpp"
+#include "pipeline/runs/run_files.hpp"
 
 namespace bsms {
 

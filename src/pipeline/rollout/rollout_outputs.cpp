@@ -8,6 +8,7 @@
 #include "core/runtime.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/dataset/xdmf.hpp"
+#include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_stats.hpp"
 #include "pipeline/train/trainer.hpp"
 
@@ -24,9 +25,9 @@ fs::path out_dir(const RolloutRequest& request) {
   std::string projected;
   for (const std::string& name : projection_names(request.projection))
     projected += (projected.empty() ? "_" : "+") + name;
-  return fs::path(request.run) / ((request.one_step ? "rollout_one_step" : "rollout") +
-                                  std::string(request.ensemble.empty() ? "" : "_ensemble") +
-                                  std::string(request.symmetrize ? "_symmetric" : "") + projected);
+  return run_rollout_dir(request.run, std::string(request.one_step ? "_one_step" : "") +
+                                          (request.ensemble.empty() ? "" : "_ensemble") +
+                                          (request.symmetrize ? "_symmetric" : "") + projected);
 }
 
 std::string prediction_file(const fs::path& out_dir, const std::string& split,

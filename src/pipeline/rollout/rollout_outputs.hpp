@@ -1,6 +1,6 @@
-// What the Lagrangian rollout (rollout.cpp) and the Eulerian one (rollout_eulerian.cpp) share:
-// where the outputs go, the XDMF companions of the predicted trajectories, and the figures of a
-// run copied into its rollout metrics.
+// What the rollout loop (rollout.cpp) and the solver frontier (experiments/solver_frontier.cpp)
+// write alike: where the outputs go, the XDMF companions of the predicted trajectories, and the
+// figures of a run copied into its rollout metrics.
 #pragma once
 
 #include <torch/types.h>
@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "data/dataset/dataset.hpp"
-#include "pipeline/rollout/rollout.hpp"
+#include "pipeline/rollout/rollout_request.hpp"
 #include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/runs/train_config.hpp"
 #include "pipeline/runs/train_stats.hpp"

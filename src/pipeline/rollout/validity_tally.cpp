@@ -3,14 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
-#include "pipeline/adapters/lagrangian.hpp"
+#include "pipeline/adapters/scene_features.hpp"
 
 namespace bsms {
 
-BoxWalls scene_walls(const std::string& scene_json, int dim) {
+BoxWalls scene_walls(const std::optional<mpm::Scene>& scene, int dim) {
   LagrangianSpec spec;
   spec.dim = dim;
-  resolve_walls(spec, scene_json, 1.0);
+  resolve_walls(spec, scene, 1.0);
   if (!spec.has_walls()) return {};
   return {spec.wall_lo, spec.wall_hi};
 }

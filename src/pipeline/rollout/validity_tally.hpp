@@ -14,9 +14,9 @@
 
 namespace bsms {
 
-// The walls of a dataset's scene JSON (a box background whose sides are named boundaries; see
-// lagrangian.hpp resolve_walls), or none.
-BoxWalls scene_walls(const std::string& scene_json, int dim);
+// The walls of a dataset's scene (Dataset::parsed_scene; may be none): a box background whose
+// sides are named boundaries (see scene_features.hpp resolve_walls), or none.
+BoxWalls scene_walls(const std::optional<mpm::Scene>& scene, int dim);
 
 // The measures a trajectory's frames get: none in 1-D; overlap and nodes inside other bodies
 // when the cells are triangles (2-D) or tetrahedra (3-D); the walls when there are walls.

@@ -40,7 +40,7 @@ Json to_json(const MotionRmse& parts) {
       {"centre", parts.centre}, {"rotation", parts.rotation}, {"deformation", parts.deformation}};
 }
 
-// {centre, rotation, deformation}; absent (older files) is none.
+// {centre, rotation, deformation}; absent (Eulerian rollouts) is none.
 std::optional<MotionRmse> motion_rmse_from_json(JsonObjectReader& parent, const std::string& key) {
   if (!parent.has(key)) return std::nullopt;
   const Json& value = parent.raw(key);
@@ -81,8 +81,8 @@ Json to_json(const TrajectoryRmse& t) {
           {"rmse_all_constant_velocity", t.constant_velocity}};
 }
 
-// {steps, rmse_all, rmse_all_constant_velocity}, arrays of one length; absent (older files) is
-// none.
+// {steps, rmse_all, rmse_all_constant_velocity}, arrays of one length; absent (Eulerian
+// rollouts) is none.
 std::optional<TrajectoryRmse> trajectory_rmse_from_json(JsonObjectReader& parent,
                                                         const std::string& key) {
   if (!parent.has(key)) return std::nullopt;
@@ -168,7 +168,7 @@ ValidityMeasures validity_measures_from_json(JsonObjectReader& parent, const std
   return measures;
 }
 
-// {model, truth}; absent (older files) is none.
+// {model, truth}; absent (nothing to measure: Eulerian, 1-D, no walls or cells) is none.
 std::optional<PhysicalValidityMetrics> validity_from_json(JsonObjectReader& parent,
                                                           const std::string& key) {
   if (!parent.has(key)) return std::nullopt;

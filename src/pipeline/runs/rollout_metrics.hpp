@@ -132,14 +132,14 @@ struct RolloutMetrics {
   std::optional<ProjectionMetrics> projection;
   int levels = 1;
   int threads = 0;
-  std::string cpu;  // cpu_model_name() of the machine that timed it ("cpu"; older files: "")
+  std::string cpu;  // cpu_model_name() of the machine that timed it ("cpu"; "" when unknown)
   // RMSE over the first 1, 50 and all predicted steps (none when no step was predicted), and the
   // RMSE of each predicted step per field (Lagrangian: world_pos only).
   std::optional<FieldRmse> rmse_1, rmse_50, rmse_all;
   std::map<std::string, std::vector<double>> rmse_per_step;
   // HorizonRmse's table ("rmse_trajectory_mean": {"1": {field: RMSE, ..., "total"}, ..., "all"}):
   // the figures comparable with the references', beside the pooled rmse_1/rmse_50/rmse_all above
-  // (each (trajectory, step) pair weighted equally). Empty in files written before it existed.
+  // (each (trajectory, step) pair weighted equally). Empty when no step was predicted.
   std::map<std::string, FieldRmse> rmse_trajectory_mean;
   // Lagrangian: RMSE-all of extrapolating the first velocity (the reference a model must beat),
   // and the fraction of predicted cells turned inside out against the first frame.
@@ -147,7 +147,7 @@ struct RolloutMetrics {
   std::vector<double> inverted_cells_per_step;
   double inverted_cells_max = 0.0;
   // Lagrangian: the position RMSE-all of the model and of constant velocity split into each
-  // body's centre, rotation and deformation (none in files written before the split existed).
+  // body's centre, rotation and deformation.
   std::optional<MotionRmse> rmse_all_parts, rmse_all_parts_constant_velocity;
   // The deformation part of holding each body's shape at the first frame (rigid bodies): what a
   // model of the elastic response must beat (constant velocity's deformation part also counts
@@ -155,12 +155,10 @@ struct RolloutMetrics {
   std::optional<double> rmse_all_deformation_rigid;
   // Lagrangian: each trajectory's RMSE ("per_trajectory"), and the 95 % bootstrap interval of
   // RMSE-all / constant velocity over the test trajectories ("rmse_all_ratio_interval"): how far
-  // the ratio could move on another draw of test trajectories from the same family. None in
-  // files written before they existed.
+  // the ratio could move on another draw of test trajectories from the same family.
   std::optional<TrajectoryRmse> per_trajectory;
   std::optional<RatioInterval> rmse_all_ratio_interval;
-  // Lagrangian in 2-D and 3-D: overlap between bodies and nodes outside the walls ("validity");
-  // none in files written before it existed.
+  // Lagrangian in 2-D and 3-D: overlap between bodies and nodes outside the walls ("validity").
   std::optional<PhysicalValidityMetrics> validity;
   // Eulerian: the first frame held on the predicted nodes (no model). Lagrangian with a stress
   // output: rmse_all_persistence has the stress of the last true frame (1) held, field "stress".

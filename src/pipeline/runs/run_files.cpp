@@ -12,8 +12,24 @@ namespace fs = std::filesystem;
 std::string run_config_path(const std::string& run) {
   return (fs::path(run) / "config.json").string();
 }
+std::string run_checkpoint_dir(const std::string& run) {
+  return (fs::path(run) / "checkpoints").string();
+}
 std::string run_checkpoint_path(const std::string& run) {
-  return (fs::path(run) / "checkpoints" / "latest.h5").string();
+  return (fs::path(run_checkpoint_dir(run)) / "latest.h5").string();
+}
+std::string multilevel_cache_dir(const std::string& dir) {
+  return (fs::path(dir) / "multilevel").string();
+}
+std::vector<std::string> multilevel_cache_dirs(const std::string& data_dir,
+                                               const std::string& run) {
+  return {multilevel_cache_dir(data_dir), multilevel_cache_dir(run)};
+}
+std::string run_rollout_dir(const std::string& run, const std::string& suffix) {
+  return (fs::path(run) / ("rollout" + suffix)).string();
+}
+std::string rollout_metrics_path(const std::string& rollout_dir) {
+  return (fs::path(rollout_dir) / "metrics.json").string();
 }
 std::string run_log_path(const std::string& run) {
   return (fs::path(run) / "train_log.csv").string();

@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/config.hpp"
 #include "pipeline/runs/train_config.hpp"
@@ -15,6 +16,15 @@ std::string run_config_path(const std::string& run);
 std::string run_checkpoint_path(const std::string& run);
 std::string run_log_path(const std::string& run);
 std::string run_stats_path(const std::string& run);
+std::string run_checkpoint_dir(const std::string& run);
+// DIR/multilevel: the multilevel graph cache of a run or a dataset folder (graphs/graph_cache.hpp).
+std::string multilevel_cache_dir(const std::string& dir);
+// The cache folders a run looks in for its graphs on `data_dir`: the data's, then its own.
+std::vector<std::string> multilevel_cache_dirs(const std::string& data_dir, const std::string& run);
+// RUN/rollout...: the outputs of one rollout of a run (`suffix`: "", "_one_step",
+// "_ensemble", ...), and its metrics file.
+std::string run_rollout_dir(const std::string& run, const std::string& suffix);
+std::string rollout_metrics_path(const std::string& rollout_dir);
 // The LibTorch checkpoint older bsms wrote beside `path` (RUN/checkpoints/latest.pt for
 // RUN/checkpoints/latest.h5; empty for other names), and the one line that refuses it.
 std::string legacy_checkpoint_path(const std::string& path);

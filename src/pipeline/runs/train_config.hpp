@@ -19,7 +19,7 @@ struct ModelConfig {
   int mp_per_level = 1;                // BSMS: message-passing blocks per level (down, bottom, up)
   // BSMS: blocks per level, one per level from the mesh down (config: mp_per_level as a list);
   // empty = mp_per_level on every level.
-  std::vector<int> level_blocks;
+  std::vector<int> mp_per_level_list;
   // Matrix products of the model's layers: "float32" or "bf16" (models/graph_ops.hpp,
   // MatmulPrecision: bfloat16 operands, float32 everything else).
   std::string precision = "float32";

@@ -14,8 +14,6 @@ namespace bsms {
 
 namespace {
 
-constexpr const char* kHeaderBeforeBaseline = "step,wall_s,loss,valid_loss,lr";
-
 std::vector<std::string> split_cells(const std::string& line) {
   std::vector<std::string> cells;
   size_t start = 0;
@@ -43,9 +41,9 @@ std::optional<double> parse_number(const std::string& cell) {
   return value;
 }
 
-// Cells of one row in the given layout (with or without the valid_baseline column).
-std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bool baseline) {
-  if (cells.size() != (baseline ? 6u : 5u)) return std::nullopt;
+// Cells of one row.
+std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells) {
+  if (cells.size() != 6u) return std::nullopt;
   TrainLogRow row;
   const auto step = parse_step(cells[0]);
   const auto wall = parse_number(cells[1]);
@@ -62,8 +60,7 @@ std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bo
   row.loss = *loss;
   row.lr = *lr;
   const std::string& valid = cells[3];
-  const std::string none;
-  const std::string& zero = baseline ? cells[4] : none;
+  const std::string& zero = cells[4];
   if (!valid.empty()) {
     const auto v = parse_number(valid);
     if (!v || !loss_like(*v)) return std::nullopt;
@@ -72,7 +69,7 @@ std::optional<TrainLogRow> parse_cells(const std::vector<std::string>& cells, bo
   if (!zero.empty()) {
     const auto z = parse_number(zero);
     if (!z || valid.empty() || !loss_like(*z)) return std::nullopt;
-    row.valid_baseline = *z;
+    row.valid_zero_prediction = *z;
   }
   return row;
 }
@@ -84,7 +81,7 @@ std::string format_train_log_row(const TrainLogRow& row) {
   out.precision(6);
   out << row.step << ',' << row.wall_s << ',' << row.loss << ',';
   if (row.has_valid())
-    out << row.valid_loss << ',' << row.valid_baseline;
+    out << row.valid_loss << ',' << row.valid_zero_prediction;
   else
     out << ',';
   out << ',' << row.lr;
@@ -92,7 +89,7 @@ std::string format_train_log_row(const TrainLogRow& row) {
 }
 
 std::optional<TrainLogRow> parse_train_log_row(const std::string& line) {
-  return parse_cells(split_cells(line), true);
+  return parse_cells(split_cells(line));
 }
 
 std::vector<TrainLogRow> read_train_log(const std::string& file) {
@@ -100,18 +97,16 @@ std::vector<TrainLogRow> read_train_log(const std::string& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file + ": cannot open the training log (written by bsms train)");
   std::string line;
-  if (!std::getline(in, line) || (line != kTrainLogHeader && line != kHeaderBeforeBaseline))
+  if (!std::getline(in, line) || line != kTrainLogHeader)
     throw InputError(file + ": line 1 is not a training-log header (expected " +
                      std::string(kTrainLogHeader) + ")");
-  const bool baseline = line == kTrainLogHeader;
   std::vector<TrainLogRow> rows;
   for (int64_t number = 2; std::getline(in, line); ++number) {
     if (in.eof()) break;  // no newline after it: torn, or still being written
-    const auto row = parse_cells(split_cells(line), baseline);
+    const auto row = parse_cells(split_cells(line));
     if (!row)
       throw InputError(file + ": line " + std::to_string(number) + " is not a log row (" +
-                       (baseline ? std::string(kTrainLogHeader) : kHeaderBeforeBaseline) +
-                       "): " + line.substr(0, 80));
+                       std::string(kTrainLogHeader) + "): " + line.substr(0, 80));
     rows.push_back(*row);
   }
   return rows;
@@ -146,8 +141,9 @@ std::vector<double> trailing_mean_loss(const std::vector<TrainLogRow>& rows, siz
 std::vector<ValidationPoint> validation_curve(const std::vector<TrainLogRow>& rows) {
   std::vector<ValidationPoint> curve;
   for (const TrainLogRow& row : rows)
-    if (row.has_valid() && std::isfinite(row.valid_baseline) && row.valid_baseline > 0.0)
-      curve.push_back({row.step, row.wall_s, row.valid_loss / row.valid_baseline});
+    if (row.has_valid() && std::isfinite(row.valid_zero_prediction) &&
+        row.valid_zero_prediction > 0.0)
+      curve.push_back({row.step, row.wall_s, row.valid_loss / row.valid_zero_prediction});
   return curve;
 }
 

@@ -1,8 +1,7 @@
 // RUN/train_log.csv (docs/design.md "Runs"): one row per optimizer step, as a type with one writer
 // (bsms train appends rows) and one strict reader (bsms report's loss plots; resume keeps the
-// rows up to the checkpoint). Columns: step, wall_s, loss, valid_loss, valid_baseline, lr; the two
-// validation cells are empty on steps without validation. Logs without the
-// valid_baseline column and read back with it NaN.
+// rows up to the checkpoint). Columns: step, wall_s, loss, valid_loss, valid_zero_prediction, lr;
+// the two validation cells are empty on steps without validation.
 #pragma once
 
 #include <cmath>
@@ -13,14 +12,15 @@
 
 namespace bsms {
 
-inline constexpr const char* kTrainLogHeader = "step,wall_s,loss,valid_loss,valid_baseline,lr";
+inline constexpr const char* kTrainLogHeader =
+    "step,wall_s,loss,valid_loss,valid_zero_prediction,lr";
 
 struct TrainLogRow {
   int64_t step = 0;
   double wall_s = 0.0;  // training time of the run so far (all sessions)
   double loss = 0.0;
-  double valid_loss = std::nan("");      // NaN: no validation at this step
-  double valid_baseline = std::nan("");  // the loss of predicting zero on the same frames
+  double valid_loss = std::nan("");             // NaN: no validation at this step
+  double valid_zero_prediction = std::nan("");  // the loss of predicting zero on the same frames
   double lr = 0.0;
   bool has_valid() const { return std::isfinite(valid_loss); }
 };
@@ -46,7 +46,7 @@ std::vector<double> trailing_mean(const std::vector<double>& values, size_t wind
 struct ValidationPoint {
   int64_t step = 0;
   double wall_s = 0.0;
-  double fraction = 0.0;  // valid_loss / valid_baseline
+  double fraction = 0.0;  // valid_loss / valid_zero_prediction
 };
 
 // The checks of a log that carry both the loss and its zero-prediction reference, in order.

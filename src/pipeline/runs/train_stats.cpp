@@ -17,7 +17,7 @@ Json to_json(const TrainStats& s) {
             {"wall_s", s.wall_s},
             {"final_loss", measure_json(s.final_loss)},
             {"final_valid_loss", measure_json(s.final_valid_loss)},
-            {"final_valid_baseline", measure_json(s.final_valid_baseline)},
+            {"final_valid_zero_prediction", measure_json(s.final_valid_zero_prediction)},
             {"num_parameters", s.num_parameters},
             {"valid_split", s.valid_split}};
   if (!s.blas.empty()) j["blas"] = s.blas;
@@ -44,7 +44,7 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
   s.wall_s = read_at_least(r, "wall_s");
   s.final_loss = read_measure(r, "final_loss");
   s.final_valid_loss = read_measure(r, "final_valid_loss");
-  s.final_valid_baseline = read_measure(r, "final_valid_baseline");
+  s.final_valid_zero_prediction = read_measure(r, "final_valid_zero_prediction");
   s.num_parameters = read_int_at_least<int64_t>(r, "num_parameters", 0);
   s.valid_split = r.get<std::string>("valid_split");
   require(s.valid_split == "valid" || s.valid_split == "train", r.context("valid_split"),

@@ -13,16 +13,16 @@
 namespace bsms {
 
 struct TrainStats {
-  int64_t steps = 0;                  // optimizer steps of the run so far (all sessions)
-  double train_ms_per_step = 0.0;     // median over the session's steps
-  double peak_rss_mb_train = 0.0;     // the highest of every session
-  int threads = 0;                    // LibTorch threads per rank
-  int world_size = 1;                 // data-parallel ranks
-  int64_t samples_per_step = 0;       // world_size × batch size
-  double wall_s = 0.0;                // the session's training time
-  double final_loss = 0.0;            // last training loss (NaN: none)
-  double final_valid_loss = 0.0;      // last validation loss (NaN: none)
-  double final_valid_baseline = 0.0;  // its zero-prediction loss (NaN: none)
+  int64_t steps = 0;                         // optimizer steps of the run so far (all sessions)
+  double train_ms_per_step = 0.0;            // median over the session's steps
+  double peak_rss_mb_train = 0.0;            // the highest of every session
+  int threads = 0;                           // LibTorch threads per rank
+  int world_size = 1;                        // data-parallel ranks
+  int64_t samples_per_step = 0;              // world_size × batch size
+  double wall_s = 0.0;                       // the session's training time
+  double final_loss = 0.0;                   // last training loss (NaN: none)
+  double final_valid_loss = 0.0;             // last validation loss (NaN: none)
+  double final_valid_zero_prediction = 0.0;  // its zero-prediction loss (NaN: none)
   int64_t num_parameters = 0;
   std::string valid_split = "valid";  // "valid", or "train" when the dataset has none
   // The BLAS build and kernels the session ran with (OpenBLAS's openblas_get_config, e.g.

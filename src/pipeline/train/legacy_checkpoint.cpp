@@ -9,10 +9,9 @@
 
 #include "core/error.hpp"
 #include "models/fused_adam.hpp"
-#include "pipeline/adapters/eulerian.hpp"
-#include "pipeline/adapters/lagrangian.hpp"
-#include "pipeline/runs/run_files.hpp"
+#include "pipeline/adapters/run_adapter.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/runs/run_files.hpp"
 #include "pipeline/train/trainer.hpp"
 
 namespace bsms {
@@ -75,10 +74,7 @@ ConvertedCheckpoint convert_torch_checkpoint(const std::string& run) {
                      "bsms); nothing to convert");
   const RunFolder folder = RunFolder::open(run);
   const Json& features = folder.features_resolved;
-  const bool eulerian = features.is_object() && features.value("kind", std::string()) == "eulerian";
-  const ModelShape shape =
-      eulerian ? model_shape(eulerian_spec_from_json(features, folder.config_path))
-               : model_shape(lagrangian_spec_from_json(features, folder.config_path));
+  const ModelShape shape = adapter_from_features(features, folder.config_path)->model_shape();
   LearnedSimulator simulator(shape, folder.config.model, folder.levels);
   FusedAdam optimizer(simulator.parameters(),
                       torch::optim::AdamOptions(folder.config.optimizer.lr));
@@ -104,7 +100,7 @@ ConvertedCheckpoint convert_torch_checkpoint(const std::string& run) {
     if (archive.try_read("losses", losses) && losses.numel() == 3) {
       info.loss = losses[0].item<double>();
       info.valid_loss = losses[1].item<double>();
-      info.valid_baseline = losses[2].item<double>();
+      info.valid_zero_prediction = losses[2].item<double>();
     }
   } catch (const c10::Error& e) {
     throw InputError(done.from + ": not a readable bsms LibTorch checkpoint (" +

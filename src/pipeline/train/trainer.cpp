@@ -138,296 +138,342 @@ struct BatchOrder {
 
 }  // namespace
 
-TrainResult train(const TrainRequest& request) {
-  const auto started = std::chrono::steady_clock::now();
-  TrainConfig config = load_train_config(request);
-  const int threads = configure_threads(set_num_threads(requested_threads(request)));
-  torch::manual_seed(config.seed);
-  const DistributedSettings& dist = request.distributed;
-  if (dist.enabled() && static_cast<int64_t>(dist.world) * config.optimizer.batch_size > 4096)
-    throw InputError("WORLD_SIZE=" + std::to_string(dist.world) +
-                     " x optimizer.batch_size=" + std::to_string(config.optimizer.batch_size) +
-                     ": at most 4096 samples per step in all");
+namespace {
 
-  TrainResult result;
-  result.run_dir = request.out.empty()
-                       ? (fs::path("runs") / fs::path(request.config_path).stem()).string()
-                       : request.out;
-  const std::string run = result.run_dir;
+// Validation loss and, beside it, the loss of predicting zero (same units).
+struct Validation {
+  double loss = std::nan(""), zero_prediction = std::nan("");
+};
+
+// One `bsms train` session on one rank: set up in the constructor (config, data, features, the
+// run folder, the model), then run().
+class TrainSession {
+ public:
+  explicit TrainSession(const TrainRequest& request);
+  TrainResult run();
+
+ private:
+  // Rank 0 checks and prepares the run folder (with --resume it reads the checkpoint, which the
+  // other ranks, perhaps on machines without the folder, receive from it); the others wait for
+  // its verdict.
+  void prepare_run_folder(const Json& run_json);
+  void check_resume(const Json& run_json);
+  void build_model();
+  // One log row; a checkpoint's row is flushed before the checkpoint is written, so that every
+  // step up to a checkpoint is in the log whenever a session is killed.
+  void log_row(int64_t at, double wall_s, double loss, const Validation* v, double lr);
+  Validation validate();
+  // One training batch: deterministic in (seed, step), noise included; this rank's slots.
+  TrainBatch training_batch(int64_t index);
+  // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
+  // drawn apart from the training steps'), summed over the ranks. A resumed run has them in its
+  // checkpoint; a fresh one starts every rank from rank 0's parameters.
+  void settle_normalizers();
+  void print_start() const;
+  FitHooks fit_hooks();
+  void write_stats(const FitResult& fitted, double last_loss, int64_t collective_calls_before,
+                   double collective_ms_before);
+
+  const TrainRequest& request_;
+  const std::chrono::steady_clock::time_point started_;
+  TrainConfig config_;
+  int threads_ = 1;
+  std::string run_;
+  std::optional<Dataset> train_data_, valid_data_;
+  bool has_valid_ = false;
+  ResolvedModel resolved_;
+  std::unique_ptr<Communicator> comm_;
+  int rank_ = 0, world_ = 1, per_rank_ = 1;
+  bool writer_ = true;  // rank 0 alone writes the run folder
+  bool quiet_ = false;
+  std::string checkpoint_;
+  std::string checkpoint_bytes_;            // rank 0's checkpoint, for the other ranks
+  std::optional<TrainStats> stats_before_;  // RUN/train_stats.json on --resume, when there is one
+  std::unique_ptr<GraphStore> store_;
+  std::shared_ptr<LearnedSimulator> simulator_;
+  std::unique_ptr<FusedAdam> optimizer_;
+  int64_t step_ = 0;
+  double wall_before_ = 0.0;
+  CheckpointInfo resumed_;  // the losses at the checkpoint: reported if no step is trained
+  std::ofstream log_;
+  std::vector<SampleRef> valid_refs_;  // fixed validation samples: the same every time, no noise
+  Validation last_valid_;
+  double batch_weight_ = 0.0;  // predicted nodes of the last batch: the weight of its loss
+  // Pushforward: the model's own rollout (no gradient, inference mode) feeds the samples of steps
+  // from features.pushforward_from on (steps count from 1 as in the log; `index` from 0; never
+  // the normaliser batches, whose indices are < 0).
+  Predictor rollout_step_;
+  BatchOrder order_;
+  std::unique_ptr<Prefetcher> prefetcher_;
+  std::optional<double> seconds_to_first_step_;
+};
+
+TrainSession::TrainSession(const TrainRequest& request)
+    : request_(request), started_(std::chrono::steady_clock::now()) {
+  config_ = load_train_config(request);
+  threads_ = configure_threads(set_num_threads(requested_threads(request)));
+  torch::manual_seed(config_.seed);
+  const DistributedSettings& dist = request.distributed;
+  if (dist.enabled() && static_cast<int64_t>(dist.world) * config_.optimizer.batch_size > 4096)
+    throw InputError("WORLD_SIZE=" + std::to_string(dist.world) +
+                     " x optimizer.batch_size=" + std::to_string(config_.optimizer.batch_size) +
+                     ": at most 4096 samples per step in all");
+  run_ = request.out.empty() ? (fs::path("runs") / fs::path(request.config_path).stem()).string()
+                             : request.out;
   // First thing: sessions killed while writing may have left temporary files (those of live
   // processes, e.g. other ranks, are kept).
-  for (const fs::path& dir : {fs::path(run), fs::path(run) / "checkpoints",
-                              fs::path(run) / "multilevel", fs::path(config.data) / "multilevel"})
+  for (const std::string& dir : {run_, run_checkpoint_dir(run_), multilevel_cache_dir(run_),
+                                 multilevel_cache_dir(config_.data)})
     remove_stale_temporaries(dir);
-  const Dataset train_data = Dataset::open_split(config.data, "train");
+  train_data_.emplace(Dataset::open_split(config_.data, "train"));
   // A missing valid split validates on training data and says so; a broken one is an error.
-  const bool has_valid = Dataset::has_split(config.data, "valid");
-  const Dataset valid_data = Dataset::open_split(config.data, has_valid ? "valid" : "train");
-  const ResolvedModel resolved = resolve_model(config, train_data);
+  has_valid_ = Dataset::has_split(config_.data, "valid");
+  valid_data_.emplace(Dataset::open_split(config_.data, has_valid_ ? "valid" : "train"));
+  resolved_ = resolve_model(config_, *train_data_);
 
   // Data parallelism: every rank has checked its config and data; now they meet.
-  std::unique_ptr<Communicator> comm;
-  if (dist.enabled()) comm = std::make_unique<Communicator>(dist);
-  const int rank = comm ? comm->rank() : 0;
-  const int world = comm ? comm->world() : 1;
-  const bool writer = rank == 0;  // rank 0 alone writes the run folder
-  const bool quiet = request.quiet || !writer;
-  if (!has_valid && writer)
-    std::cerr << "bsms train: warning: " << one_line(config.data, 300)
+  if (dist.enabled()) comm_ = std::make_unique<Communicator>(dist);
+  rank_ = comm_ ? comm_->rank() : 0;
+  world_ = comm_ ? comm_->world() : 1;
+  writer_ = rank_ == 0;
+  quiet_ = request.quiet || !writer_;
+  per_rank_ = config_.optimizer.batch_size;
+  if (!has_valid_ && writer_)
+    std::cerr << "bsms train: warning: " << one_line(config_.data, 300)
               << " has no valid split; valid_loss is measured on training frames\n";
+  checkpoint_ = run_checkpoint_path(run_);
+  prepare_run_folder({{"config", to_json(config_)},
+                      {"features_resolved", resolved_.spec_json()},
+                      {"levels", resolved_.levels},
+                      {"world_size", world_},
+                      {"config_file", request.config_path}});
+  build_model();
+}
 
-  const std::string checkpoint = run_checkpoint_path(run);
-  const Json run_json = {{"config", to_json(config)},
-                         {"features_resolved", resolved.spec_json()},
-                         {"levels", resolved.levels},
-                         {"world_size", world},
-                         {"config_file", request.config_path}};
-  // Rank 0 checks and prepares the run folder; with --resume it reads the checkpoint, which the
-  // other ranks (perhaps on machines without the folder) receive from it.
-  std::string checkpoint_bytes;
-  std::optional<TrainStats> stats_before;  // RUN/train_stats.json on --resume, when there is one
-  if (writer) {
-    try {
-      std::error_code ec;
-      fs::create_directories(fs::path(run) / "checkpoints", ec);
-      if (ec) throw InputError(run + ": cannot create the run folder (" + ec.message() + ")");
-      const std::string legacy = legacy_checkpoint_path(checkpoint);
-      if (!request.resume && (fs::exists(checkpoint) || fs::exists(legacy)))
-        throw InputError(run +
-                         ": run folder already holds a checkpoint; pass --resume to continue it "
-                         "or --out for a new run");
-      if (request.resume && !fs::exists(checkpoint) && fs::exists(legacy))
-        throw InputError(legacy_checkpoint_message(legacy));
-      if (request.resume && !fs::exists(checkpoint))
-        throw InputError(checkpoint +
-                         ": nothing to resume (no checkpoint in this run folder; a session "
-                         "stopped before its first checkpoint is started again without --resume)");
-      if (request.resume) {
-        // Every file the resume reads besides the checkpoint is read and checked here, before
-        // anything is trained or written: config.json and train_stats.json (RunFolder), the log.
-        // The saved config read back and written again: keys added since it was written
-        // (e.g. model.mp_per_level) take their defaults instead of counting as a change.
-        const RunFolder before_run = RunFolder::open(run);
-        stats_before = before_run.stats;
-        if (fs::exists(run_log_path(run))) (void)read_train_log(run_log_path(run));
-        Json a = to_json(before_run.config), b = run_json["config"];
-        for (auto* j : {&a, &b}) {
-          j->erase("steps");
-          j->erase("time_budget_s");
-          j->erase("graph_cache_mb");
-        }
-        if (a != b || before_run.levels != resolved.levels)
-          throw InputError(run_config_path(run) +
-                           ": the run was trained with another configuration; "
-                           "only steps, time_budget_s and graph_cache_mb may change on --resume");
-        const int before = before_run.world_size;
-        if (before != world)
-          std::cerr << "bsms train: warning: " << one_line(run, 300) << " was trained with "
-                    << before << " rank(s) of batch size " << config.optimizer.batch_size
-                    << "; continuing with " << world
-                    << ": the sample sequence changed (training goes on correctly, with "
-                    << world * config.optimizer.batch_size << " samples per step instead of "
-                    << before * config.optimizer.batch_size << ")\n";
-        // Read once here: every rank (this one too) loads these bytes as an HDF5 file image.
-        if (comm) checkpoint_bytes = read_checkpoint_bytes(checkpoint);
-      }
-      write_json_atomic(run_config_path(run), run_json);
-    } catch (const InputError& e) {
-      if (comm) comm->share("start", encode_verdict(2, e.what()));
-      throw;
-    } catch (const IoError& e) {
-      if (comm) comm->share("start", encode_verdict(4, e.what()));
-      throw;
-    }
-    if (comm) comm->share("start", encode_verdict(0, checkpoint_bytes));
-  } else {
-    const std::string verdict = comm->share("start", {});
+void TrainSession::prepare_run_folder(const Json& run_json) {
+  if (!writer_) {
+    const std::string verdict = comm_->share("start", {});
     const size_t newline = verdict.find('\n');
     const int code = std::atoi(verdict.substr(0, newline).c_str());
     if (code != 0) throw SilentExit(code);  // rank 0 reported it
-    checkpoint_bytes = verdict.substr(newline + 1);
+    checkpoint_bytes_ = verdict.substr(newline + 1);
+    return;
   }
+  try {
+    std::error_code ec;
+    fs::create_directories(run_checkpoint_dir(run_), ec);
+    if (ec) throw InputError(run_ + ": cannot create the run folder (" + ec.message() + ")");
+    const std::string legacy = legacy_checkpoint_path(checkpoint_);
+    if (!request_.resume && (fs::exists(checkpoint_) || fs::exists(legacy)))
+      throw InputError(run_ +
+                       ": run folder already holds a checkpoint; pass --resume to continue it "
+                       "or --out for a new run");
+    if (request_.resume && !fs::exists(checkpoint_) && fs::exists(legacy))
+      throw InputError(legacy_checkpoint_message(legacy));
+    if (request_.resume && !fs::exists(checkpoint_))
+      throw InputError(checkpoint_ +
+                       ": nothing to resume (no checkpoint in this run folder; a session "
+                       "stopped before its first checkpoint is started again without --resume)");
+    if (request_.resume) check_resume(run_json);
+    write_json_atomic(run_config_path(run_), run_json);
+  } catch (const InputError& e) {
+    if (comm_) comm_->share("start", encode_verdict(2, e.what()));
+    throw;
+  } catch (const IoError& e) {
+    if (comm_) comm_->share("start", encode_verdict(4, e.what()));
+    throw;
+  }
+  if (comm_) comm_->share("start", encode_verdict(0, checkpoint_bytes_));
+}
 
-  std::vector<std::string> cache_dirs = {(fs::path(config.data) / "multilevel").string(),
-                                         (fs::path(run) / "multilevel").string()};
+void TrainSession::check_resume(const Json& run_json) {
+  // Every file the resume reads besides the checkpoint is read and checked here, before
+  // anything is trained or written: config.json and train_stats.json (RunFolder), the log.
+  // The saved config read back and written again: keys added since it was written
+  // (e.g. model.mp_per_level) take their defaults instead of counting as a change.
+  const RunFolder before_run = RunFolder::open(run_);
+  stats_before_ = before_run.stats;
+  if (fs::exists(run_log_path(run_))) (void)read_train_log(run_log_path(run_));
+  Json a = to_json(before_run.config), b = run_json["config"];
+  for (auto* j : {&a, &b}) {
+    j->erase("steps");
+    j->erase("time_budget_s");
+    j->erase("graph_cache_mb");
+  }
+  if (a != b || before_run.levels != resolved_.levels)
+    throw InputError(run_config_path(run_) +
+                     ": the run was trained with another configuration; "
+                     "only steps, time_budget_s and graph_cache_mb may change on --resume");
+  const int before = before_run.world_size;
+  if (before != world_)
+    std::cerr << "bsms train: warning: " << one_line(run_, 300) << " was trained with " << before
+              << " rank(s) of batch size " << config_.optimizer.batch_size << "; continuing with "
+              << world_ << ": the sample sequence changed (training goes on correctly, with "
+              << world_ * config_.optimizer.batch_size << " samples per step instead of "
+              << before * config_.optimizer.batch_size << ")\n";
+  // Read once here: every rank (this one too) loads these bytes as an HDF5 file image.
+  if (comm_) checkpoint_bytes_ = read_checkpoint_bytes(checkpoint_);
+}
+
+void TrainSession::build_model() {
+  const std::vector<std::string> cache_dirs = multilevel_cache_dirs(config_.data, run_);
   for (const auto& d : cache_dirs) {
     std::error_code ec;
     fs::create_directories(d, ec);
   }
-  GraphStore store(config.model.seeding, resolved.levels, cache_dirs, 0, false,
-                   config.graph_cache_mb * (int64_t{1} << 20));
-  auto simulator =
-      std::make_shared<LearnedSimulator>(resolved.shape(), config.model, resolved.levels);
-  FusedAdam optimizer(simulator->parameters(), torch::optim::AdamOptions(config.optimizer.lr));
-
-  int64_t step = 0;
-  double wall_before = 0.0;
-  CheckpointInfo resumed;  // the losses at the checkpoint: reported if no step is trained
-  if (request.resume) {
-    resumed = comm ? load_checkpoint_bytes(checkpoint_bytes, checkpoint, *simulator, &optimizer)
-                   : load_checkpoint(checkpoint, *simulator, &optimizer);
-    step = resumed.step;
-    wall_before = resumed.wall_s;
+  store_ = std::make_unique<GraphStore>(config_.model.seeding, resolved_.levels, cache_dirs, 0,
+                                        false, config_.graph_cache_mb * (int64_t{1} << 20));
+  simulator_ =
+      std::make_shared<LearnedSimulator>(resolved_.shape(), config_.model, resolved_.levels);
+  optimizer_ = std::make_unique<FusedAdam>(simulator_->parameters(),
+                                           torch::optim::AdamOptions(config_.optimizer.lr));
+  if (request_.resume) {
+    resumed_ =
+        comm_ ? load_checkpoint_bytes(checkpoint_bytes_, checkpoint_, *simulator_, optimizer_.get())
+              : load_checkpoint(checkpoint_, *simulator_, optimizer_.get());
+    step_ = resumed_.step;
+    wall_before_ = resumed_.wall_s;
   }
-  std::ofstream log;
-  if (writer) log = open_log(run_log_path(run), step, !request.resume);
-
-  // Fixed validation samples: the same every time, no noise.
-  std::vector<SampleRef> valid_refs;
-  for (int i = 0; i < config.valid_samples; ++i)
-    valid_refs.push_back(draw_sample(valid_data, config.seed ^ 0x5bd1e995ull, -1, i));
-
-  // Validation loss and, beside it, the loss of predicting zero acceleration (same units).
-  struct Validation {
-    double loss = std::nan(""), baseline = std::nan("");
-  };
-  // One log row; a checkpoint's row is flushed before the checkpoint is written, so that every
-  // step up to a checkpoint is in the log whenever a session is killed.
-  auto log_row = [&](int64_t at, double wall_s, double loss, const Validation* v, double lr) {
-    TrainLogRow row;
-    row.step = at;
-    row.wall_s = wall_s;
-    row.loss = loss;
-    if (v) {
-      row.valid_loss = v->loss;
-      row.valid_baseline = v->baseline;
-    }
-    row.lr = lr;
-    log << format_train_log_row(row) << '\n';
-    if (v) log.flush();
-    if (!log) throw IoError(run_log_path(run) + ": cannot write");
-  };
-  auto validate = [&]() {
+  last_valid_ = {resumed_.valid_loss, resumed_.valid_zero_prediction};
+  if (writer_) log_ = open_log(run_log_path(run_), step_, !request_.resume);
+  for (int i = 0; i < config_.valid_samples; ++i)
+    valid_refs_.push_back(draw_sample(*valid_data_, config_.seed ^ 0x5bd1e995ull, -1, i));
+  rollout_step_ = [this](const Batch& b) {
     torch::NoGradGuard no_grad;
-    simulator->eval();
-    double total = 0, zero = 0;
-    for (const auto& ref : valid_refs) {
-      const TrainBatch b = make_train_batch(resolved, config, valid_data, store, {ref}, nullptr);
-      total += simulator->loss(b.batch, b.target).item<double>();
-      zero += simulator->zero_prediction_loss(b.batch, b.target).item<double>();
-    }
-    simulator->train();
-    const double n = static_cast<double>(valid_refs.size());
-    return Validation{total / n, zero / n};
-  };
-  // One training batch: deterministic in (seed, step), noise included; this rank's slots.
-  const int per_rank = config.optimizer.batch_size;
-  double batch_weight = 0.0;  // predicted nodes of the last batch: the weight of its loss
-  // Pushforward: the model's own rollout (no gradient, inference mode) feeds the samples of steps
-  // from features.pushforward_from on (steps count from 1 as in the log; `index` from 0; never
-  // the normaliser batches, whose indices are < 0).
-  const Predictor rollout_step = [&](const Batch& b) {
-    torch::NoGradGuard no_grad;
-    simulator->eval();
-    torch::Tensor out = simulator->predict(b);
-    simulator->train();
+    simulator_->eval();
+    torch::Tensor out = simulator_->predict(b);
+    simulator_->train();
     return out;
   };
-  const BatchOrder order{step, request.resume ? 0 : config.normalizer_steps};
-  Prefetcher prefetcher(
-      train_data, store,
-      [&, order](int64_t position) {
+  order_ = BatchOrder{step_, request_.resume ? 0 : config_.normalizer_steps};
+  const BatchOrder order = order_;
+  prefetcher_ = std::make_unique<Prefetcher>(
+      *train_data_, *store_,
+      [this, order](int64_t position) {
         std::vector<int64_t> trajectories;
-        for (int k = 0; k < per_rank; ++k)
-          trajectories.push_back(
-              draw_sample(train_data, config.seed, order.index_at(position), rank * per_rank + k)
-                  .trajectory);
+        for (int k = 0; k < per_rank_; ++k)
+          trajectories.push_back(draw_sample(*train_data_, config_.seed, order.index_at(position),
+                                             rank_ * per_rank_ + k)
+                                     .trajectory);
         return trajectories;
       },
-      std::clamp<int64_t>(256 / std::max(per_rank, 1), 1, 8));  // batches ahead, <= 256 samples
-  auto training_batch = [&](int64_t index) {
-    prefetcher.reached(order.position_of(index));
-    std::vector<SampleRef> refs;
-    std::vector<at::Generator> generators;
-    for (int k = 0; k < per_rank; ++k) {
-      const int slot = rank * per_rank + k;
-      refs.push_back(draw_sample(train_data, config.seed, index, slot));
-      generators.push_back(at::detail::createCPUGenerator(noise_seed(config.seed, index, slot)));
-    }
-    const bool push =
-        config.features.pushforward > 0 && index + 1 >= config.features.pushforward_from;
-    TrainBatch b = make_train_batch(resolved, config, train_data, store, refs, &generators,
-                                    push ? &rollout_step : nullptr);
-    batch_weight = b.batch.mask.sum().item<double>();
-    return b;
-  };
-  // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
-  // drawn apart from the training steps'), summed over the ranks. A resumed run has them in its
-  // checkpoint; a fresh one starts every rank from rank 0's parameters.
-  if (!request.resume) {
-    const bool all_nodes =
-        config.features.output_statistics == "all" ||
-        (config.features.output_statistics == "auto" && train_data.is_public_layout());
-    for (int64_t i = 0; i < config.normalizer_steps; ++i) {
-      const TrainBatch b = training_batch(-2 - i);
-      simulator->accumulate_statistics(b.batch, b.target, all_nodes);
-    }
-    if (comm) {
-      comm->broadcast(simulator->parameters(), 0, "broadcast of the initial parameters");
-      comm->all_reduce_sum(simulator->normalizer_sums(), 0,
-                           "all-reduce of the normalizer statistics");
-    }
+      std::clamp<int64_t>(256 / std::max(per_rank_, 1), 1, 8));  // batches ahead, <= 256 samples
+}
+
+void TrainSession::log_row(int64_t at, double wall_s, double loss, const Validation* v, double lr) {
+  TrainLogRow row;
+  row.step = at;
+  row.wall_s = wall_s;
+  row.loss = loss;
+  if (v) {
+    row.valid_loss = v->loss;
+    row.valid_zero_prediction = v->zero_prediction;
   }
+  row.lr = lr;
+  log_ << format_train_log_row(row) << '\n';
+  if (v) log_.flush();
+  if (!log_) throw IoError(run_log_path(run_) + ": cannot write");
+}
 
-  if (!quiet)
-    std::cerr << "bsms train: " << config.model.type << (resolved.eulerian ? " (Eulerian)" : "")
-              << ", " << resolved.levels << " level(s), " << simulator->num_parameters()
-              << " parameters, " << train_data.num_trajectories()
-              << " training trajectories, contact "
-              << (resolved.spec.has_contact()
-                      ? "radius " + std::to_string(resolved.spec.contact_radius)
-                      : std::string("off"))
-              << ", momentum "
-              << (resolved.spec.has_momentum()
-                      ? std::string(resolved.spec.momentum_slip_walls
-                                        ? "conserved on free bodies and along slip walls"
-                                        : "conserved on free bodies") +
-                            " (data residual " +
-                            std::to_string(100.0 * resolved.momentum_residual) + " %)"
-                      : "not conserved" + (resolved.momentum_note.empty()
-                                               ? std::string()
-                                               : " (" + resolved.momentum_note + ")"))
-              << ", " << threads << " thread(s)"
-              << (comm ? " x " + std::to_string(world) + " ranks (" +
-                             std::to_string(world * per_rank) + " samples per step)"
-                       : std::string())
-              << " -> " << run << "\n";
+Validation TrainSession::validate() {
+  torch::NoGradGuard no_grad;
+  simulator_->eval();
+  double total = 0, zero = 0;
+  for (const auto& ref : valid_refs_) {
+    const TrainBatch b =
+        make_train_batch(resolved_, config_, *valid_data_, *store_, {ref}, nullptr);
+    total += simulator_->loss(b.batch, b.target).item<double>();
+    zero += simulator_->zero_prediction_loss(b.batch, b.target).item<double>();
+  }
+  simulator_->train();
+  const double n = static_cast<double>(valid_refs_.size());
+  return Validation{total / n, zero / n};
+}
 
-  FitOptions fit_options;
-  fit_options.optimizer = config.optimizer;
-  fit_options.steps = config.steps;
-  fit_options.time_budget_s = config.time_budget_s;
-  fit_options.first_step = step;
-  fit_options.wall_before = wall_before;
-  fit_options.stop_step = request.until;
-  fit_options.quiet = quiet;
-  Validation last_valid{resumed.valid_loss, resumed.valid_baseline};
+TrainBatch TrainSession::training_batch(int64_t index) {
+  prefetcher_->reached(order_.position_of(index));
+  std::vector<SampleRef> refs;
+  std::vector<at::Generator> generators;
+  for (int k = 0; k < per_rank_; ++k) {
+    const int slot = rank_ * per_rank_ + k;
+    refs.push_back(draw_sample(*train_data_, config_.seed, index, slot));
+    generators.push_back(at::detail::createCPUGenerator(noise_seed(config_.seed, index, slot)));
+  }
+  const bool push =
+      config_.features.pushforward > 0 && index + 1 >= config_.features.pushforward_from;
+  TrainBatch b = make_train_batch(resolved_, config_, *train_data_, *store_, refs, &generators,
+                                  push ? &rollout_step_ : nullptr);
+  batch_weight_ = b.batch.mask.sum().item<double>();
+  return b;
+}
+
+void TrainSession::settle_normalizers() {
+  if (request_.resume) return;
+  const bool all_nodes =
+      config_.features.output_statistics == "all" ||
+      (config_.features.output_statistics == "auto" && train_data_->is_public_layout());
+  for (int64_t i = 0; i < config_.normalizer_steps; ++i) {
+    const TrainBatch b = training_batch(-2 - i);
+    simulator_->accumulate_statistics(b.batch, b.target, all_nodes);
+  }
+  if (comm_) {
+    comm_->broadcast(simulator_->parameters(), 0, "broadcast of the initial parameters");
+    comm_->all_reduce_sum(simulator_->normalizer_sums(), 0,
+                          "all-reduce of the normalizer statistics");
+  }
+}
+
+void TrainSession::print_start() const {
+  if (quiet_) return;
+  const LagrangianAdapter* lagrangian =
+      dynamic_cast<const LagrangianAdapter*>(resolved_.adapter.get());
+  std::string contact = "off", momentum = "not conserved";
+  if (lagrangian && lagrangian->spec().has_contact())
+    contact = "radius " + std::to_string(lagrangian->spec().contact_radius);
+  if (lagrangian && lagrangian->spec().has_momentum())
+    momentum = std::string(lagrangian->spec().momentum_slip_walls
+                               ? "conserved on free bodies and along slip walls"
+                               : "conserved on free bodies") +
+               " (data residual " + std::to_string(100.0 * resolved_.momentum_residual) + " %)";
+  else if (!resolved_.momentum_note.empty())
+    momentum += " (" + resolved_.momentum_note + ")";
+  std::cerr << "bsms train: " << config_.model.type
+            << (resolved_.adapter->kind() == "eulerian" ? " (Eulerian)" : "") << ", "
+            << resolved_.levels << " level(s), " << simulator_->num_parameters() << " parameters, "
+            << train_data_->num_trajectories() << " training trajectories, contact " << contact
+            << ", momentum " << momentum << ", " << threads_ << " thread(s)"
+            << (comm_ ? " x " + std::to_string(world_) + " ranks (" +
+                            std::to_string(world_ * per_rank_) + " samples per step)"
+                      : std::string())
+            << " -> " << run_ << "\n";
+}
+
+FitHooks TrainSession::fit_hooks() {
   FitHooks hooks;
-  std::optional<double> seconds_to_first_step;
-  hooks.loss = [&](int64_t index) {
-    if (!seconds_to_first_step)
-      seconds_to_first_step =
-          std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  hooks.loss = [this](int64_t index) {
+    if (!seconds_to_first_step_)
+      seconds_to_first_step_ =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
     const TrainBatch b = training_batch(index);
-    return simulator->loss(b.batch, b.target, config.features.rigid_loss_weight);
+    return simulator_->loss(b.batch, b.target, config_.features.rigid_loss_weight);
   };
-  if (comm) {
+  if (comm_) {
     // The loss is a mean over predicted nodes: weighting each rank's gradient by its node count
     // gives the gradient of the mean over all ranks' nodes, as one rank with all samples would.
     // One bucketed all-reduce carries the gradients, the weights, the losses and rank 0's clock.
-    const auto parameters = simulator->parameters();
-    hooks.synchronize = [&, parameters](int64_t index, double loss, double wall_s) {
+    const auto parameters = simulator_->parameters();
+    hooks.synchronize = [this, parameters](int64_t index, double loss, double wall_s) {
       std::vector<torch::Tensor> tensors;
-      auto scalars = torch::tensor({batch_weight, batch_weight * loss, writer ? wall_s : 0.0},
+      auto scalars = torch::tensor({batch_weight_, batch_weight_ * loss, writer_ ? wall_s : 0.0},
                                    torch::kFloat64);
       tensors.push_back(scalars);
       for (const auto& p : parameters) {
         auto& g = p.mutable_grad();
         if (!g.defined()) g = torch::zeros_like(p);
-        g.mul_(batch_weight);
+        g.mul_(batch_weight_);
         tensors.push_back(g);
       }
-      comm->all_reduce_sum(tensors, index, "all-reduce of the gradients");
+      comm_->all_reduce_sum(tensors, index, "all-reduce of the gradients");
       const double total = scalars[0].item<double>();
       if (!(total > 0))
         throw InputError("step " + std::to_string(index) +
@@ -438,79 +484,105 @@ TrainResult train(const TrainRequest& request) {
   }
   // Validation and an atomic checkpoint every valid_every steps and at the last step; one log
   // row per step (validation columns empty between checks). Rank 0 only.
-  hooks.after_step = [&](const FitStep& s) {
-    if (!writer) return std::string();
-    const bool checkpoint_now = s.step % config.valid_every == 0 || s.last;
+  hooks.after_step = [this](const FitStep& s) {
+    if (!writer_) return std::string();
+    const bool checkpoint_now = s.step % config_.valid_every == 0 || s.last;
     if (checkpoint_now) {
-      last_valid = validate();
-      log_row(s.step, s.wall_s, s.loss, &last_valid, s.lr);
-      save_checkpoint(checkpoint, *simulator, optimizer,
-                      {s.step, s.wall_s, s.loss, last_valid.loss, last_valid.baseline});
+      last_valid_ = validate();
+      log_row(s.step, s.wall_s, s.loss, &last_valid_, s.lr);
+      save_checkpoint(checkpoint_, *simulator_, *optimizer_,
+                      {s.step, s.wall_s, s.loss, last_valid_.loss, last_valid_.zero_prediction});
     } else {
       log_row(s.step, s.wall_s, s.loss, nullptr, s.lr);
     }
     std::ostringstream extra;
-    if (std::isfinite(last_valid.loss))
-      extra << ", valid " << std::setprecision(3) << last_valid.loss << " (zero "
-            << last_valid.baseline << ")";
+    if (std::isfinite(last_valid_.loss))
+      extra << ", valid " << std::setprecision(3) << last_valid_.loss << " (zero "
+            << last_valid_.zero_prediction << ")";
     return extra.str();
   };
-  simulator->train();
-  const int64_t collective_calls_before = comm ? comm->collective_calls : 0;
-  const double collective_ms_before = comm ? comm->collective_ms : 0.0;
-  const FitResult fitted = fit(optimizer, fit_options, hooks);
-  step = fitted.step;
+  return hooks;
+}
+
+TrainResult TrainSession::run() {
+  settle_normalizers();
+  print_start();
+  FitOptions fit_options;
+  fit_options.optimizer = config_.optimizer;
+  fit_options.steps = config_.steps;
+  fit_options.time_budget_s = config_.time_budget_s;
+  fit_options.first_step = step_;
+  fit_options.wall_before = wall_before_;
+  fit_options.stop_step = request_.until;
+  fit_options.quiet = quiet_;
+  simulator_->train();
+  const int64_t collective_calls_before = comm_ ? comm_->collective_calls : 0;
+  const double collective_ms_before = comm_ ? comm_->collective_ms : 0.0;
+  const FitResult fitted = fit(*optimizer_, fit_options, fit_hooks());
+  step_ = fitted.step;
   // The last step of the session was checkpointed (a time budget's too: FitStep::last); without
   // a step the losses are the checkpoint's.
-  const double last_loss = step > fit_options.first_step ? fitted.last_loss : resumed.loss;
-  result.steps = step;
+  const double last_loss = step_ > fit_options.first_step ? fitted.last_loss : resumed_.loss;
+  TrainResult result;
+  result.run_dir = run_;
+  result.steps = step_;
   result.final_loss = last_loss;
-  result.final_valid_loss = last_valid.loss;
+  result.final_valid_loss = last_valid_.loss;
   result.train_ms_per_step = fitted.median_step_ms();
-  if (!writer) return result;
-  log.close();
+  if (!writer_) return result;
+  log_.close();
+  write_stats(fitted, last_loss, collective_calls_before, collective_ms_before);
+  return result;
+}
 
+void TrainSession::write_stats(const FitResult& fitted, double last_loss,
+                               int64_t collective_calls_before, double collective_ms_before) {
   const double session_steps = static_cast<double>(fitted.step_ms.size());
   TrainStats stats;
-  stats.steps = step;
-  stats.train_ms_per_step = result.train_ms_per_step;
+  stats.steps = step_;
+  stats.train_ms_per_step = fitted.median_step_ms();
   stats.peak_rss_mb_train = peak_rss_mb();
-  stats.threads = threads;
-  stats.world_size = world;
-  stats.samples_per_step = world * per_rank;
+  stats.threads = threads_;
+  stats.world_size = world_;
+  stats.samples_per_step = world_ * per_rank_;
   stats.wall_s = fitted.wall_s;
   stats.final_loss = last_loss;
-  stats.final_valid_loss = last_valid.loss;
-  stats.final_valid_baseline = last_valid.baseline;
-  stats.num_parameters = simulator->num_parameters();
-  stats.valid_split = has_valid ? "valid" : "train";
+  stats.final_valid_loss = last_valid_.loss;
+  stats.final_valid_zero_prediction = last_valid_.zero_prediction;
+  stats.num_parameters = simulator_->num_parameters();
+  stats.valid_split = has_valid_ ? "valid" : "train";
   stats.blas = blas_config();
   stats.allocator = allocator_name();
-  stats.seconds_to_first_step = seconds_to_first_step;
-  const GraphStore::Stats graphs = store.stats();
+  stats.seconds_to_first_step = seconds_to_first_step_;
+  const GraphStore::Stats graphs = store_->stats();
   stats.graphs_made = graphs.builds;
   stats.graphs_evicted = graphs.evictions;
   stats.graph_cache_peak_mb = static_cast<double>(graphs.peak_bytes) / (1 << 20);
-  if (comm && session_steps > 0) {
-    stats.allreduce_ms_per_step = (comm->collective_ms - collective_ms_before) / session_steps;
+  if (comm_ && session_steps > 0) {
+    stats.allreduce_ms_per_step = (comm_->collective_ms - collective_ms_before) / session_steps;
     stats.allreduce_calls_per_step =
-        static_cast<double>(comm->collective_calls - collective_calls_before) / session_steps;
+        static_cast<double>(comm_->collective_calls - collective_calls_before) / session_steps;
   }
-  if (stats_before) {
+  if (stats_before_) {
     // Keep the median of the first session when this one ran no step.
-    const TrainStats& before = *stats_before;
+    const TrainStats& before = *stats_before_;
     if (fitted.step_ms.empty()) stats.train_ms_per_step = before.train_ms_per_step;
     stats.peak_rss_mb_train = std::max(before.peak_rss_mb_train, stats.peak_rss_mb_train);
   }
-  write_json_atomic(run_stats_path(run), to_json(stats));
-  if (!request.quiet)
-    std::cerr << "bsms train: " << step << " steps, loss " << last_loss << ", valid loss "
-              << last_valid.loss << " (zero prediction " << last_valid.baseline << "), "
+  write_json_atomic(run_stats_path(run_), to_json(stats));
+  if (!request_.quiet)
+    std::cerr << "bsms train: " << step_ << " steps, loss " << last_loss << ", valid loss "
+              << last_valid_.loss << " (zero prediction " << last_valid_.zero_prediction << "), "
               << stats.train_ms_per_step << " ms/step (median), peak RSS " << peak_rss_mb()
               << " MB; graphs: " << graphs.builds << " made, " << graphs.evictions
               << " evicted, peak " << std::fixed << std::setprecision(1)
               << *stats.graph_cache_peak_mb << " MB\n";
-  return result;
+}
+
+}  // namespace
+
+TrainResult train(const TrainRequest& request) {
+  return TrainSession(request).run();
 }
 
 }  // namespace bsms

@@ -9,25 +9,20 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "core/config.hpp"
 #include "data/dataset/dataset.hpp"
 #include "pipeline/adapters/eulerian.hpp"
-#include "pipeline/graphs/graph_store.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
-#include "pipeline/rollout/scene_symmetry.hpp"
+#include "pipeline/adapters/scene_symmetry.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/graphs/graph_store.hpp"
 #include "pipeline/runs/train_config.hpp"
 
 namespace bsms {
-
-// One training sample: frame t of a trajectory (predicting t+1 from t-1 and t).
-struct SampleRef {
-  int64_t trajectory;
-  int64_t frame;  // t: uses t-1, t, t+1
-};
 
 // Deterministic in (seed, step, slot): a resumed run draws exactly the samples it would have.
 // Data-parallel rank r of N draws slots r*b .. r*b+b-1 of the N*b of a step, so that N ranks of
@@ -50,32 +45,20 @@ struct ResolvedModel {
   // maps each noisy training sample; empty when off.
   std::vector<BoxSymmetry> augment;
 
-  Json spec_json() const { return eulerian ? to_json(eulerian_spec) : to_json(spec); }
-  ModelShape shape() const { return eulerian ? model_shape(eulerian_spec) : model_shape(spec); }
+  // The domain's adapter for these features: what makes the training batches.
+  std::shared_ptr<const DomainAdapter> adapter;
+
+  Json spec_json() const { return adapter->spec_json(); }
+  ModelShape shape() const { return adapter->model_shape(); }
 };
 // InputError when the training data cannot train a model (no world_pos or velocity field, mixed
 // mesh dimensions, trajectories shorter than 3 frames) or cannot be augmented as asked (an
 // Eulerian dataset, or a scene with no symmetry but the identity).
 ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data);
 
-// One training or validation batch and its target.
-struct TrainBatch {
-  Batch batch;
-  torch::Tensor target;
-};
-
-// The model's prediction for a batch (Lagrangian: acceleration or velocity), without gradient.
-using Predictor = std::function<torch::Tensor(const Batch&)>;
-
-// The adapter-specific part of training: samples of a dataset -> a batch and its target. The noise
-// of refs[k] is drawn from generators[k] (no noise without generators). With a predictor and
-// config.features.pushforward = u > 0 (Lagrangian data), sample (trajectory, t) starts from the
-// truth at frames t-1-u' and t-u' (u' = min(u, t-1)) and is rolled out by the predictor to frame
-// t; the noise is added to that state and the target is the truth's next frame, corrected by
-// (1 - noise_gamma) times noise plus drift (Batch::noise), or with pushforward_target
-// "acceleration" the frame's own noisy target, as if the state had not drifted. With r.augment,
-// each noisy sample (state, truth and mesh positions) is then mapped by one of its symmetries,
-// drawn from the sample's generator after its noise.
+// Samples of a dataset -> a batch and its target, through the resolved adapter
+// (DomainAdapter::make_train_batch). The noise of refs[k] is drawn from generators[k] (no noise
+// without generators); `predictor` for pushforward (Lagrangian data).
 TrainBatch make_train_batch(const ResolvedModel& r, const TrainConfig& config, const Dataset& data,
                             GraphStore& store, const std::vector<SampleRef>& refs,
                             std::vector<at::Generator>* generators,

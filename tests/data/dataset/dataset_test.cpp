@@ -8,10 +8,14 @@
 #include <functional>
 #include <limits>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "core/error.hpp"
 #include "core/hdf5_file.hpp"
 #include "data/dataset/xdmf.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms {
 namespace {
@@ -24,6 +28,11 @@ fs::path temp_dir(const std::string& name) {
   fs::create_directories(dir);
   return dir;
 }
+
+// A scene as `bsms generate` stores it: its family file, whose "scene" is the base scene.
+const char* const kFamilyScene = R"({"family": "disks", "scene": {"dim": 2,
+    "background": {"type": "box", "min": [0, 0], "max": [1, 1], "element_size": 0.04},
+    "solver": {"end_time": 1.0}}, "sample": {}})";
 
 Trajectory make_trajectory(int64_t seed, int64_t frames) {
   Trajectory t;
@@ -48,7 +57,7 @@ Trajectory make_trajectory(int64_t seed, int64_t frames) {
 TEST(Dataset, WriteThenRandomAccessRead) {
   const fs::path dir = temp_dir("roundtrip");
   {
-    DatasetWriter w((dir / "train.h5").string(), R"({"name": "disks2d"})", 2, 0.01);
+    DatasetWriter w((dir / "train.h5").string(), kFamilyScene, 2, 0.01);
     w.add(make_trajectory(7, 5));
     w.add(make_trajectory(8, 3));
     w.commit();
@@ -57,7 +66,7 @@ TEST(Dataset, WriteThenRandomAccessRead) {
   EXPECT_FALSE(d.is_public_layout());
   EXPECT_EQ(d.dim(), 2);
   EXPECT_DOUBLE_EQ(d.frame_dt(), 0.01);
-  EXPECT_EQ(d.scene(), R"({"name": "disks2d"})");
+  EXPECT_EQ(d.scene(), kFamilyScene);
   ASSERT_EQ(d.num_trajectories(), 2);
   EXPECT_EQ(d.num_frames(0), 5);
   EXPECT_EQ(d.num_frames(1), 3);
@@ -106,6 +115,54 @@ std::string error_of(const std::function<void()>& f) {
   return "(no InputError)";
 }
 
+// The stored scene is read strictly when the dataset opens: a family file gives its base scene
+// (the parser's defaults filled in), "{}" none, and a bad value is an InputError naming the file
+// and the key, never a dataset without a scene.
+TEST(Dataset, StoredSceneIsTypedWhenOpenedAndABadOneNamesItsKey) {
+  const fs::path dir = temp_dir("scene");
+  const std::string path = (dir / "train.h5").string();
+  auto write = [&](const std::string& scene) {
+    DatasetWriter w(path, scene, 2, 0.01);
+    w.add(make_trajectory(1, 2));
+    w.commit();
+  };
+  write(kFamilyScene);
+  {
+    const Dataset d(path);
+    ASSERT_TRUE(d.parsed_scene().has_value());
+    EXPECT_EQ(d.parsed_scene()->background.type, "box");
+    EXPECT_EQ(d.parsed_scene()->background.max, (std::vector<double>{1.0, 1.0}));
+    EXPECT_EQ(d.parsed_scene()->background.element_size, 0.04);
+    EXPECT_TRUE(d.parsed_scene()->bodies.empty());                          // the draws bring them
+    EXPECT_EQ(d.parsed_scene()->gravity, (std::vector<double>{0.0, 0.0}));  // the default
+  }
+  write("{}");
+  EXPECT_FALSE(Dataset(path).parsed_scene().has_value());
+  const std::string box = R"("dim": 2, "solver": {"end_time": 1.0}, "background": {"type": "box",
+      "min": [0, 0], "max": [1, 1], )";
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {R"({"scene": {)" + box + R"("element_size": -0.04}}})", "'scene.background.element_size'"},
+      {R"({"scene": {)" + box + R"("element_size": "fine"}}})", "'scene.background.element_size'"},
+      {R"({"scene": {)" + box + R"("element_size": 0.04, "colour": "red"}}})",
+       "'scene.background.colour'"},
+      {R"({"scene": {"dim": 2, "solver": {"end_time": 1.0}, "background": {"type": "grid"}}})",
+       "'scene.background.type'"},
+      {R"({"scene": {"dim": 3, "solver": {"end_time": 1.0}, "background": {"type": "box",
+          "min": [0, 0, 0], "max": [1, 1, 1], "element_size": 0.04}}})",
+       "'scene.dim'"},  // a 3-D scene in 2-D data
+      // Not a family file: read as a scene file, which has a dim.
+      {R"({"name": "disks2d"})", "'dim'"},
+      {"[1, 2]", "attribute 'scene'"},
+      {"{\"scene\": ", "attribute 'scene'"}};
+  for (const auto& [scene, key] : bad) {
+    SCOPED_TRACE(scene);
+    write(scene);
+    const std::string e = error_of([&] { Dataset d(path); });
+    EXPECT_NE(e.find(path), std::string::npos) << e;
+    EXPECT_NE(e.find(key), std::string::npos) << e;
+  }
+}
+
 // Sets one value of a dataset in a written file, as damage (or a bad converter) would.
 template <class T>
 void set_value(const std::string& path, const std::string& name, size_t index, T value) {
@@ -125,7 +182,7 @@ TEST(Dataset, ReadChecksValuesAndNamesFileTrajectoryFieldFrameNode) {
   const std::string path = (dir / "train.h5").string();
   auto write = [&] {
     // A scene: simulated data, whose node types are bsms's 0..3.
-    DatasetWriter w(path, R"({"name": "disks2d"})", 2, 0.01);
+    DatasetWriter w(path, kFamilyScene, 2, 0.01);
     w.add(make_trajectory(1, 4));
     w.add(make_trajectory(2, 4));
     w.commit();

@@ -107,6 +107,108 @@ struct CellFace {
   }
 };
 
+// The face of cell c (k nodes) without its vertex `skip`: its smallest vertex, and the rest.
+CellFace face_of(const Mesh& mesh, int k, int64_t c, int skip, int64_t& smallest) {
+  std::array<int64_t, 3> v = {-1, -1, -1};
+  int m = 0;
+  for (int a = 0; a < k; ++a)
+    if (a != skip) v[m++] = mesh.cells(c, a);
+  for (int a = 1; a < m; ++a)  // at most 3 entries (std::sort trips -Warray-bounds)
+    for (int b = a; b > 0 && v[b] < v[b - 1]; --b) std::swap(v[b], v[b - 1]);
+  smallest = v[0];
+  return CellFace{{v[1], v[2]}, c, mesh.cells(c, skip)};
+}
+
+// The faces of the cells not marked in `kind`, bucketed by their smallest vertex (a counting
+// sort, linear in the cells; a global sort of 6M faces took ~1 s): bucket v is
+// faces[start[v]..start[v + 1]). Counting and filling are parallel over cells with atomic bucket
+// cursors, so the order inside a bucket depends on the threads until the bucket is sorted.
+struct FaceBuckets {
+  std::vector<int64_t> start;
+  std::vector<CellFace> faces;
+};
+
+FaceBuckets bucket_faces(const Mesh& mesh, const std::vector<char>& kind) {
+  const int64_t C = mesh.num_cells();
+  const int k = mesh.nodes_per_cell();
+  const int64_t n = mesh.num_nodes();
+  FaceBuckets b;
+  std::vector<int64_t>& start = b.start;
+  start.assign(n + 1, 0);
+#pragma omp parallel for schedule(static) if (C > 65536)
+  for (int64_t c = 0; c < C; ++c) {
+    if (kind[c]) continue;
+    for (int skip = 0; skip < k; ++skip) {
+      int64_t smallest = 0;
+      face_of(mesh, k, c, skip, smallest);
+#pragma omp atomic
+      ++start[smallest + 1];
+    }
+  }
+  for (int64_t v = 0; v < n; ++v) start[v + 1] += start[v];
+  std::vector<CellFace>& faces = b.faces;
+  faces.resize(static_cast<size_t>(start[n]));
+  std::vector<int64_t> fill(start.begin(), start.end() - 1);
+#pragma omp parallel for schedule(static) if (C > 65536)
+  for (int64_t c = 0; c < C; ++c) {
+    if (kind[c]) continue;
+    for (int skip = 0; skip < k; ++skip) {
+      int64_t smallest = 0;
+      const CellFace f = face_of(mesh, k, c, skip, smallest);
+      int64_t at = 0;
+#pragma omp atomic capture
+      at = fill[smallest]++;
+      faces[static_cast<size_t>(at)] = f;
+    }
+  }
+  return b;
+}
+
+// Sign of vertex v relative to the hyperplane of face f (smallest vertex x0), in the face's own
+// frame.
+double face_side(const Mesh& mesh, int64_t x0, const CellFace& f, int64_t v) {
+  const int d = mesh.dim;
+  double m[3][3] = {};
+  for (int i = 0; i < d; ++i) {
+    for (int a = 1; a < d; ++a) m[i][a - 1] = mesh.points(f.rest[a - 1], i) - mesh.points(x0, i);
+    m[i][d - 1] = mesh.points(v, i) - mesh.points(x0, i);
+  }
+  return small_determinant(m, d);
+}
+
+// A face two cells share with their opposite vertices on one side: the cell against the
+// majority orientation (`majority` * measure < 0) is inverted. Found per bucket in parallel (each
+// bucket sorted by (other vertices, cell) first, so the result does not depend on threads);
+// cells may repeat.
+std::vector<int64_t> folded_cells(const Mesh& mesh, FaceBuckets& buckets,
+                                  const std::vector<double>& measure, double majority) {
+  const int64_t C = mesh.num_cells();
+  const int64_t n = mesh.num_nodes();
+  std::vector<CellFace>& faces = buckets.faces;
+  const std::vector<int64_t>& start = buckets.start;
+  std::vector<int64_t> folded;
+#pragma omp parallel if (C > 65536)
+  {
+    std::vector<int64_t> mine;
+#pragma omp for schedule(dynamic, 4096) nowait
+    for (int64_t v = 0; v < n; ++v) {
+      const auto first = faces.begin() + start[v], last = faces.begin() + start[v + 1];
+      std::sort(first, last);
+      for (auto f = first; f + 1 < last; ++f) {
+        if (f->rest != (f + 1)->rest) continue;
+        const double s0 = face_side(mesh, v, *f, f->opposite);
+        const double s1 = face_side(mesh, v, *f, (f + 1)->opposite);
+        if (!(s0 * s1 > 0.0)) continue;  // opposite sides: a proper neighbour
+        for (int64_t c : {f->cell, (f + 1)->cell})
+          if (measure[c] * majority < 0.0) mine.push_back(c);
+      }
+    }
+#pragma omp critical
+    folded.insert(folded.end(), mine.begin(), mine.end());
+  }
+  return folded;
+}
+
 }  // namespace
 
 std::string BadCells::describe() const {
@@ -121,7 +223,6 @@ BadCells find_bad_cells(const Mesh& mesh) {
   constexpr double kTol = 1e-10;
   BadCells bad;
   const int64_t C = mesh.num_cells();
-  const int k = mesh.nodes_per_cell();
   const bool full = mesh.cell_dim == mesh.dim;
   std::vector<double> measure(C);
   std::vector<char> kind(C, 0);  // 1 zero-measure, 2 inverted
@@ -139,84 +240,8 @@ BadCells find_bad_cells(const Mesh& mesh) {
   bad.degenerate = degenerate;
   if (full) {
     const double majority = 2 * positive >= C - bad.degenerate ? 1.0 : -1.0;
-    // Faces bucketed by their smallest vertex (a counting sort, linear in the cells; a global
-    // sort of 6M faces took ~1 s), then ordered by (other vertices, cell) inside each bucket of a
-    // few faces. Counting and filling are parallel over cells with atomic bucket cursors; the
-    // order inside a bucket is restored by its sort, so the result does not depend on threads.
-    const int64_t n = mesh.num_nodes();
-    std::vector<int64_t> start(n + 1, 0);
-    // The face of cell c without its vertex `skip`: its smallest vertex, and the rest.
-    auto face_of = [&](int64_t c, int skip, int64_t& smallest) {
-      std::array<int64_t, 3> v = {-1, -1, -1};
-      int m = 0;
-      for (int a = 0; a < k; ++a)
-        if (a != skip) v[m++] = mesh.cells(c, a);
-      for (int a = 1; a < m; ++a)  // at most 3 entries (std::sort trips -Warray-bounds)
-        for (int b = a; b > 0 && v[b] < v[b - 1]; --b) std::swap(v[b], v[b - 1]);
-      smallest = v[0];
-      return CellFace{{v[1], v[2]}, c, mesh.cells(c, skip)};
-    };
-#pragma omp parallel for schedule(static) if (C > 65536)
-    for (int64_t c = 0; c < C; ++c) {
-      if (kind[c]) continue;
-      for (int skip = 0; skip < k; ++skip) {
-        int64_t smallest = 0;
-        face_of(c, skip, smallest);
-#pragma omp atomic
-        ++start[smallest + 1];
-      }
-    }
-    for (int64_t v = 0; v < n; ++v) start[v + 1] += start[v];
-    std::vector<CellFace> faces(static_cast<size_t>(start[n]));
-    {
-      std::vector<int64_t> fill(start.begin(), start.end() - 1);
-#pragma omp parallel for schedule(static) if (C > 65536)
-      for (int64_t c = 0; c < C; ++c) {
-        if (kind[c]) continue;
-        for (int skip = 0; skip < k; ++skip) {
-          int64_t smallest = 0;
-          const CellFace f = face_of(c, skip, smallest);
-          int64_t at = 0;
-#pragma omp atomic capture
-          at = fill[smallest]++;
-          faces[static_cast<size_t>(at)] = f;
-        }
-      }
-    }
-    const int d = mesh.dim;
-    auto side = [&](int64_t x0, const CellFace& f, int64_t v) {
-      // Sign of the opposite vertex relative to the face hyperplane, in the face's own frame.
-      double m[3][3] = {};
-      for (int i = 0; i < d; ++i) {
-        for (int a = 1; a < d; ++a)
-          m[i][a - 1] = mesh.points(f.rest[a - 1], i) - mesh.points(x0, i);
-        m[i][d - 1] = mesh.points(v, i) - mesh.points(x0, i);
-      }
-      return small_determinant(m, d);
-    };
-    // A face two cells share with their opposite vertices on one side: the cell against the
-    // majority orientation is inverted. Found per bucket in parallel, marked after (few).
-    std::vector<int64_t> folded;
-#pragma omp parallel if (C > 65536)
-    {
-      std::vector<int64_t> mine;
-#pragma omp for schedule(dynamic, 4096) nowait
-      for (int64_t v = 0; v < n; ++v) {
-        const auto first = faces.begin() + start[v], last = faces.begin() + start[v + 1];
-        std::sort(first, last);
-        for (auto f = first; f + 1 < last; ++f) {
-          if (f->rest != (f + 1)->rest) continue;
-          const double s0 = side(v, *f, f->opposite);
-          const double s1 = side(v, *f, (f + 1)->opposite);
-          if (!(s0 * s1 > 0.0)) continue;  // opposite sides: a proper neighbour
-          for (int64_t c : {f->cell, (f + 1)->cell})
-            if (measure[c] * majority < 0.0) mine.push_back(c);
-        }
-      }
-#pragma omp critical
-      folded.insert(folded.end(), mine.begin(), mine.end());
-    }
-    for (int64_t c : folded)
+    FaceBuckets buckets = bucket_faces(mesh, kind);
+    for (int64_t c : folded_cells(mesh, buckets, measure, majority))
       if (kind[c] == 0) {
         kind[c] = 2;
         ++bad.inverted;

@@ -86,106 +86,125 @@ constexpr uint32_t kArch = AUDIT_ARCH_X86_64;
 constexpr uint32_t kArch = AUDIT_ARCH_AARCH64;
 #endif
 
+// Calls the sandbox refuses with EPERM: running a program, creating or changing files and the file
+// system, sockets, other processes' memory, mounts, bpf and io_uring.
+constexpr long kDeniedCalls[] = {
+    SYS_execve,
+    SYS_execveat,
+#ifdef SYS_fork
+    SYS_fork,
+    SYS_vfork,
+#endif
+#ifdef SYS_creat
+    SYS_creat,
+    SYS_mkdir,
+    SYS_rmdir,
+    SYS_unlink,
+    SYS_rename,
+    SYS_link,
+    SYS_symlink,
+    SYS_chmod,
+    SYS_chown,
+    SYS_lchown,
+    SYS_mknod,
+    SYS_utime,
+    SYS_utimes,
+    SYS_futimesat,
+#endif
+    SYS_mkdirat,
+    SYS_unlinkat,
+    SYS_renameat,
+    SYS_renameat2,
+    SYS_linkat,
+    SYS_symlinkat,
+    SYS_truncate,
+    SYS_fchmod,
+    SYS_fchmodat,
+    SYS_fchown,
+    SYS_fchownat,
+    SYS_mknodat,
+    SYS_utimensat,
+    SYS_setxattr,
+    SYS_lsetxattr,
+    SYS_fsetxattr,
+    SYS_removexattr,
+    SYS_lremovexattr,
+    SYS_fremovexattr,
+    SYS_socket,
+    SYS_socketpair,
+    SYS_ptrace,
+    SYS_process_vm_writev,
+    SYS_name_to_handle_at,
+    SYS_open_by_handle_at,
+    SYS_mount,
+    SYS_umount2,
+    SYS_chroot,
+    SYS_pivot_root,
+    SYS_bpf,
+#ifdef SYS_io_uring_setup
+    SYS_io_uring_setup,
+#endif
+#ifdef SYS_openat2
+    SYS_openat2,
+#endif
+};
+
+constexpr uint32_t kDeny = SECCOMP_RET_ERRNO | (EPERM & SECCOMP_RET_DATA);
+
+// A classic BPF program for seccomp, built in order.
+struct FilterProgram {
+  std::vector<sock_filter> code;
+  void stmt(uint16_t op, uint32_t k) { code.push_back(BPF_STMT(op, k)); }
+  void jump(uint16_t op, uint32_t k, uint8_t jt, uint8_t jf) {
+    code.push_back(BPF_JUMP(op, k, jt, jf));
+  }
+};
+
+// Loads the call number; other ABIs (i386, x32) get nothing.
+void load_native_call(FilterProgram& f) {
+  f.stmt(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, arch));
+  f.jump(BPF_JMP | BPF_JEQ | BPF_K, kArch, 1, 0);
+  f.stmt(BPF_RET | BPF_K, kDeny);
+  f.stmt(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, nr));
+#if defined(__x86_64__)
+  f.jump(BPF_JMP | BPF_JGE | BPF_K, 0x40000000u, 0, 1);
+  f.stmt(BPF_RET | BPF_K, kDeny);
+#endif
+}
+
+// open(path, flags) / openat(dir, path, flags) with its flags in argument `arg`: reading only.
+// Ends the program for call `nr` (allowed or EACCES); other calls fall through.
+void allow_reading_only(FilterProgram& f, long nr, int arg) {
+  const uint32_t writes = O_WRONLY | O_RDWR | O_CREAT | O_TRUNC | O_APPEND;
+  f.jump(BPF_JMP | BPF_JEQ | BPF_K, static_cast<uint32_t>(nr), 0, 4);
+  f.stmt(BPF_LD | BPF_W | BPF_ABS,
+         static_cast<uint32_t>(offsetof(seccomp_data, args) + 8 * arg));  // low 32 bits (LE)
+  f.jump(BPF_JMP | BPF_JSET | BPF_K, writes, 0, 1);
+  f.stmt(BPF_RET | BPF_K, SECCOMP_RET_ERRNO | (EACCES & SECCOMP_RET_DATA));
+  f.stmt(BPF_RET | BPF_K, SECCOMP_RET_ALLOW);
+}
+
 // The seccomp filter of a worker without --allow-geo-commands: gmsh may read files, but not run
 // a program, write or create a file, change the file system or open a socket. Denied calls fail
 // with EPERM (gmsh reports them as failed commands); threads (clone) stay allowed for OpenMP, and
 // a fork can only run more of gmsh, under the same filter.
-bool install_sandbox() {
-  std::vector<sock_filter> f;
-  auto stmt = [&](uint16_t code, uint32_t k) { f.push_back(BPF_STMT(code, k)); };
-  auto jump = [&](uint16_t code, uint32_t k, uint8_t jt, uint8_t jf) {
-    f.push_back(BPF_JUMP(code, k, jt, jf));
-  };
-  const uint32_t deny = SECCOMP_RET_ERRNO | (EPERM & SECCOMP_RET_DATA);
-  // Other ABIs (i386, x32) get nothing.
-  stmt(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, arch));
-  jump(BPF_JMP | BPF_JEQ | BPF_K, kArch, 1, 0);
-  stmt(BPF_RET | BPF_K, deny);
-  stmt(BPF_LD | BPF_W | BPF_ABS, offsetof(seccomp_data, nr));
-#if defined(__x86_64__)
-  jump(BPF_JMP | BPF_JGE | BPF_K, 0x40000000u, 0, 1);
-  stmt(BPF_RET | BPF_K, deny);
-#endif
-  const long denied[] = {
-      SYS_execve,
-      SYS_execveat,
-#ifdef SYS_fork
-      SYS_fork,
-      SYS_vfork,
-#endif
-#ifdef SYS_creat
-      SYS_creat,
-      SYS_mkdir,
-      SYS_rmdir,
-      SYS_unlink,
-      SYS_rename,
-      SYS_link,
-      SYS_symlink,
-      SYS_chmod,
-      SYS_chown,
-      SYS_lchown,
-      SYS_mknod,
-      SYS_utime,
-      SYS_utimes,
-      SYS_futimesat,
-#endif
-      SYS_mkdirat,
-      SYS_unlinkat,
-      SYS_renameat,
-      SYS_renameat2,
-      SYS_linkat,
-      SYS_symlinkat,
-      SYS_truncate,
-      SYS_fchmod,
-      SYS_fchmodat,
-      SYS_fchown,
-      SYS_fchownat,
-      SYS_mknodat,
-      SYS_utimensat,
-      SYS_setxattr,
-      SYS_lsetxattr,
-      SYS_fsetxattr,
-      SYS_removexattr,
-      SYS_lremovexattr,
-      SYS_fremovexattr,
-      SYS_socket,
-      SYS_socketpair,
-      SYS_ptrace,
-      SYS_process_vm_writev,
-      SYS_name_to_handle_at,
-      SYS_open_by_handle_at,
-      SYS_mount,
-      SYS_umount2,
-      SYS_chroot,
-      SYS_pivot_root,
-      SYS_bpf,
-#ifdef SYS_io_uring_setup
-      SYS_io_uring_setup,
-#endif
-#ifdef SYS_openat2
-      SYS_openat2,
-#endif
-  };
-  for (long nr : denied) {
-    jump(BPF_JMP | BPF_JEQ | BPF_K, static_cast<uint32_t>(nr), 0, 1);
-    stmt(BPF_RET | BPF_K, deny);
+std::vector<sock_filter> sandbox_filter() {
+  FilterProgram f;
+  load_native_call(f);
+  for (long nr : kDeniedCalls) {
+    f.jump(BPF_JMP | BPF_JEQ | BPF_K, static_cast<uint32_t>(nr), 0, 1);
+    f.stmt(BPF_RET | BPF_K, kDeny);
   }
-  // open(path, flags) / openat(dir, path, flags): reading only.
-  const uint32_t writes = O_WRONLY | O_RDWR | O_CREAT | O_TRUNC | O_APPEND;
-  auto read_only = [&](long nr, int arg) {
-    jump(BPF_JMP | BPF_JEQ | BPF_K, static_cast<uint32_t>(nr), 0, 4);
-    stmt(BPF_LD | BPF_W | BPF_ABS,
-         static_cast<uint32_t>(offsetof(seccomp_data, args) + 8 * arg));  // low 32 bits (LE)
-    jump(BPF_JMP | BPF_JSET | BPF_K, writes, 0, 1);
-    stmt(BPF_RET | BPF_K, SECCOMP_RET_ERRNO | (EACCES & SECCOMP_RET_DATA));
-    stmt(BPF_RET | BPF_K, SECCOMP_RET_ALLOW);
-  };
 #ifdef SYS_open
-  read_only(SYS_open, 1);
+  allow_reading_only(f, SYS_open, 1);
 #endif
-  read_only(SYS_openat, 2);
-  stmt(BPF_RET | BPF_K, SECCOMP_RET_ALLOW);
+  allow_reading_only(f, SYS_openat, 2);
+  f.stmt(BPF_RET | BPF_K, SECCOMP_RET_ALLOW);
+  return f.code;
+}
 
+bool install_sandbox() {
+  std::vector<sock_filter> f = sandbox_filter();
   sock_fprog program{static_cast<unsigned short>(f.size()), f.data()};
   if (::prctl(PR_SET_NO_NEW_PRIVS, 1, 0, 0, 0) != 0) return false;
   return ::prctl(PR_SET_SECCOMP, SECCOMP_MODE_FILTER, &program) == 0;

@@ -6,6 +6,7 @@
 
 #include <torch/types.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,13 +32,13 @@ struct BoxSymmetry {
   TrajectoryMesh mesh(const TrajectoryMesh& m) const;
 };
 
-// The symmetries of a dataset's scene (a family file with a "scene" object, or a scene) in `dim`
+// The symmetries of a dataset's scene (Dataset::parsed_scene; may be none) in `dim`
 // dimensions: every signed axis permutation about the centre of its axis-aligned "box"
 // background that maps the box onto itself (swapped axes have equal sides), each side onto a
 // side with the same boundary type (or both without a boundary) and the gravity onto itself.
-// Identity first. Only the identity when the scene has no such box, has a boundary that is not a
-// side of it, or rotates it; `why` (optional) then says which.
-std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim,
+// Identity first. Only the identity when there is no such box of `dim` dimensions, the scene has
+// a boundary that is not a side of it, or rotates it; `why` (optional) then says which.
+std::vector<BoxSymmetry> scene_symmetries(const std::optional<mpm::Scene>& scene, int dim,
                                           std::string* why = nullptr);
 
 }  // namespace bsms

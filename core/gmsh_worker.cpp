@@ -29,8 +29,8 @@
 
 #include "core/error.hpp"
 #include "core/geo_scan.hpp"
-#include "core/hdf5_file.hpp"
 #include "core/gmsh_result.hpp"
+#include "core/hdf5_file.hpp"
 #include "core/mesh.hpp"
 #include "core/msh_reader.hpp"
 

@@ -1,12 +1,13 @@
-#include "pipeline/rollout/scene_symmetry.hpp"
+#include "pipeline/adapters/scene_symmetry.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <optional>
 
 #include "data/mpm/background.hpp"
-#include "pipeline/adapters/lagrangian.hpp"
+#include "data/mpm/scene_config.hpp"
 
 namespace bsms {
 namespace {
@@ -60,7 +61,7 @@ TrajectoryMesh BoxSymmetry::mesh(const TrajectoryMesh& m) const {
   return out;
 }
 
-std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim,
+std::vector<BoxSymmetry> scene_symmetries(const std::optional<mpm::Scene>& scene, int dim,
                                           std::string* why) {
   BoxSymmetry identity;
   identity.source.resize(dim);
@@ -72,52 +73,32 @@ std::vector<BoxSymmetry> scene_symmetries(const std::string& scene_json, int dim
     if (why) *why = reason;
     return out;
   };
-  Json scene = Json::object();
-  const Json background = scene_background(scene_json, &scene);
-  if (background.value("type", std::string()) != "box")
-    return none("the scene has no \"box\" background");
-  const Json rotation = background.value("rotation_deg", Json(0.0));
-  if (!rotation.is_number() || rotation.get<double>() != 0.0)
-    return none("the scene's box is rotated");
-  const Json lo = background.value("min", Json()), hi = background.value("max", Json());
-  if (!lo.is_array() || !hi.is_array() || static_cast<int>(lo.size()) != dim ||
-      static_cast<int>(hi.size()) != dim)
+  if (!scene || scene->background.type != "box") return none("the scene has no \"box\" background");
+  const mpm::BackgroundSpec& box = scene->background;
+  if (box.rotation_deg != 0.0) return none("the scene's box is rotated");
+  if (scene->dim != dim)
     return none("the scene's box has no min and max of " + std::to_string(dim) + " numbers");
   std::vector<double> extent(dim);
   for (int a = 0; a < dim; ++a) {
-    if (!lo[a].is_number() || !hi[a].is_number())
-      return none("the scene's box min or max is not a number");
-    identity.centre[a] = 0.5 * (lo[a].get<double>() + hi[a].get<double>());
-    extent[a] = hi[a].get<double>() - lo[a].get<double>();
+    identity.centre[a] = 0.5 * (box.min[a] + box.max[a]);
+    extent[a] = box.max[a] - box.min[a];
   }
   out = {identity};
-  // Boundary type of each side (axis, 0 = low, 1 = high); "" = no boundary there.
+  // Boundary type of each side (axis, 0 = low, 1 = high); none = no boundary there.
   std::map<std::string, std::pair<int, int>> side_of;
   for (int a = 0; a < dim; ++a)
     for (int s = 0; s < 2; ++s) side_of[mpm::box_side_name(a, s != 0)] = {a, s};
-  std::vector<std::vector<std::string>> type(dim, std::vector<std::string>(2));
-  for (const auto& b : scene.value("boundaries", Json::array())) {
-    const auto group = b.is_object() ? b.value("group", Json()) : Json();
-    if (!group.is_string() || side_of.count(group.get<std::string>()) == 0)
+  std::vector<std::vector<std::optional<mpm::BoundaryType>>> type(
+      dim, std::vector<std::optional<mpm::BoundaryType>>(2));
+  for (const auto& b : scene->boundaries) {
+    if (side_of.count(b.group) == 0)  // a half-space has no group
       return none("the scene has a boundary that is not a side of its box");
-    const auto [a, s] = side_of[group.get<std::string>()];
-    const Json type_json = b.value("type", Json("fixed"));
-    if (!type_json.is_string()) return none("the scene has a boundary whose type is no name");
-    const std::string t = type_json.get<std::string>();
-    if (!type[a][s].empty() && type[a][s] != t)
+    const auto [a, s] = side_of[b.group];
+    if (type[a][s] && *type[a][s] != b.type)
       return none("the scene has two boundary types on one side");
-    type[a][s] = t;
+    type[a][s] = b.type;
   }
-  std::vector<double> gravity(dim, 0.0);
-  if (scene.contains("gravity")) {
-    const Json& g = scene["gravity"];
-    if (!g.is_array() || static_cast<int>(g.size()) != dim)
-      return none("the scene's gravity is not " + std::to_string(dim) + " numbers");
-    for (int a = 0; a < dim; ++a) {
-      if (!g[a].is_number()) return none("the scene's gravity is not a number");
-      gravity[a] = g[a].get<double>();
-    }
-  }
+  const std::vector<double>& gravity = scene->gravity;  // [dim], zero unless the scene sets it
   std::vector<int> perm(dim);
   std::iota(perm.begin(), perm.end(), 0);
   do {

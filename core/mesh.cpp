@@ -82,9 +82,8 @@ class NodeSlots {
 
 constexpr int64_t kParallelMin = 1 << 16;  // list length from which loops are split over threads
 
-}  // namespace
-
-Mesh assemble_mesh(MeshParts parts, const std::string& context) {
+// The checks on `parts` before any work; returns the number of cells.
+int64_t check_parts(const MeshParts& parts, const std::string& context) {
   const int cell_dim = parts.cell_dim;
   if (cell_dim == 0)
     throw InputError(context + ": empty mesh (no line, triangle or tetrahedron cells)");
@@ -107,9 +106,11 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
                                   std::to_string(k) + " nodes");
     num_cells += static_cast<int64_t>(parts.tag_lists[l].size()) / k;
   }
+  return num_cells;
+}
 
-  // Every node tag list -> positions in node_tags, in place.
-  const NodeSlots slots(parts.node_tags, parts.node_coords, context);
+// Every node tag list -> positions in node_tags, in place.
+void tags_to_slots(MeshParts& parts, const NodeSlots& slots, const std::string& context) {
   std::vector<char> cell_list(parts.tag_lists.size(), 0);
   for (std::size_t l : parts.cells) cell_list[l] = 1;
   for (std::size_t l = 0; l < parts.tag_lists.size(); ++l) {
@@ -130,8 +131,10 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
                        " references node tag " + std::to_string(list[bad]) +
                        " that has no coordinates");
   }
+}
 
-  // Nodes the cells use, in ascending tag order.
+// Slots of the nodes the cells use, in ascending tag order (tag lists already slots).
+std::vector<int64_t> used_slots_by_tag(const MeshParts& parts, const NodeSlots& slots) {
   const std::size_t m = parts.node_tags.size();
   std::vector<char> used(m, 0);
   for (std::size_t l : parts.cells)
@@ -146,14 +149,12 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
     std::sort(order.begin(), order.end(),
               [&](int64_t a, int64_t b) { return parts.node_tags[a] < parts.node_tags[b]; });
   }
-  const auto n = static_cast<int64_t>(order.size());
-  std::vector<int64_t> index_of(m, -1);
-  for (int64_t i = 0; i < n; ++i) index_of[order[i]] = i;
+  return order;
+}
 
-  RowMatrixXd xyz(n, 3);
-#pragma omp parallel for if (n >= kParallelMin)
-  for (int64_t i = 0; i < n; ++i)
-    for (int c = 0; c < 3; ++c) xyz(i, c) = parts.node_coords[3 * order[i] + c];
+// The cells' node indices [num_cells, k]: the cell lists concatenated, slots -> `index_of`.
+RowMatrixXi64 gather_cells(const MeshParts& parts, const std::vector<int64_t>& index_of,
+                           int64_t num_cells, int k) {
   RowMatrixXi64 cells(num_cells, k);
   int64_t* out = cells.data();
   for (std::size_t l : parts.cells) {
@@ -163,27 +164,20 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
     for (int64_t i = 0; i < len; ++i) out[i] = index_of[list[i]];
     out += len;
   }
+  return cells;
+}
 
-  int dim = 1;
-  if (cell_dim == 3 || (n > 0 && xyz.col(2).cwiseAbs().maxCoeff() > 0)) {
-    dim = 3;
-  } else if (cell_dim == 2 || (n > 0 && xyz.col(1).cwiseAbs().maxCoeff() > 0)) {
-    dim = 2;
-  }
-  Mesh mesh;
-  mesh.dim = dim;
-  mesh.cell_dim = cell_dim;
-  mesh.points = xyz.leftCols(dim);
-  mesh.cells = std::move(cells);
-  mesh.node_tags.resize(n);
-  for (int64_t i = 0; i < n; ++i) {
-    const std::size_t tag = parts.node_tags[order[i]];
-    if (tag > static_cast<std::size_t>(std::numeric_limits<int64_t>::max()))
-      throw InputError(context + ": node tag " + std::to_string(tag) + " is larger than 2^63-1");
-    mesh.node_tags[i] = static_cast<int64_t>(tag);
-  }
+// 3 with tetrahedra or a non-zero z, else 2 with triangles or a non-zero y, else 1.
+int mesh_dimension(int cell_dim, const RowMatrixXd& xyz) {
+  const int64_t n = xyz.rows();
+  if (cell_dim == 3 || (n > 0 && xyz.col(2).cwiseAbs().maxCoeff() > 0)) return 3;
+  if (cell_dim == 2 || (n > 0 && xyz.col(1).cwiseAbs().maxCoeff() > 0)) return 2;
+  return 1;
+}
 
-  // Physical groups: node sets by name (unnamed groups as "dim:tag"; equal names merged).
+// Physical groups: node sets by name (unnamed groups as "dim:tag"; equal names merged).
+void add_node_groups(const MeshParts& parts, const std::vector<int64_t>& index_of, int64_t n,
+                     Mesh& mesh) {
   for (const MeshParts::Group& group : parts.groups) {
     const std::string name = group.name.empty()
                                  ? std::to_string(group.dim) + ":" + std::to_string(group.tag)
@@ -209,6 +203,42 @@ Mesh assemble_mesh(MeshParts parts, const std::string& context) {
       nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
     }
   }
+}
+
+}  // namespace
+
+Mesh assemble_mesh(MeshParts parts, const std::string& context) {
+  const int64_t num_cells = check_parts(parts, context);
+  const int cell_dim = parts.cell_dim;
+  const NodeSlots slots(parts.node_tags, parts.node_coords, context);
+  tags_to_slots(parts, slots, context);
+
+  // Nodes the cells use, in ascending tag order.
+  const std::vector<int64_t> order = used_slots_by_tag(parts, slots);
+  const auto n = static_cast<int64_t>(order.size());
+  std::vector<int64_t> index_of(parts.node_tags.size(), -1);
+  for (int64_t i = 0; i < n; ++i) index_of[order[i]] = i;
+
+  RowMatrixXd xyz(n, 3);
+#pragma omp parallel for if (n >= kParallelMin)
+  for (int64_t i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) xyz(i, c) = parts.node_coords[3 * order[i] + c];
+  RowMatrixXi64 cells = gather_cells(parts, index_of, num_cells, cell_dim + 1);
+
+  const int dim = mesh_dimension(cell_dim, xyz);
+  Mesh mesh;
+  mesh.dim = dim;
+  mesh.cell_dim = cell_dim;
+  mesh.points = xyz.leftCols(dim);
+  mesh.cells = std::move(cells);
+  mesh.node_tags.resize(n);
+  for (int64_t i = 0; i < n; ++i) {
+    const std::size_t tag = parts.node_tags[order[i]];
+    if (tag > static_cast<std::size_t>(std::numeric_limits<int64_t>::max()))
+      throw InputError(context + ": node tag " + std::to_string(tag) + " is larger than 2^63-1");
+    mesh.node_tags[i] = static_cast<int64_t>(tag);
+  }
+  add_node_groups(parts, index_of, n, mesh);
   validate_mesh(mesh, context);
   return mesh;
 }

@@ -6,6 +6,7 @@ namespace bsms {
 namespace {
 
 // Element types of gmsh 4.8 (gmsh::model::mesh::getElementProperties for types 1..200).
+// A constant data table, one row per type (long by nature, no logic).
 constexpr GmshElementType kElementTypes[] = {
     {1, 1, 2, "Line 2"},
     {2, 2, 3, "Triangle 3"},
