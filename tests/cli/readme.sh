@@ -12,8 +12,8 @@ src=$1 build=$2 work=$3
 fail() { echo "readme: $*" >&2; exit 1; }
 
 # 1. Links: [text](target), target not a URL or an anchor alone; and every repository path the
-#    pages name in code spans (`docs/design.md`, `configs/...`), placeholders (FILE, RUN, *, {})
-#    aside. docs/results.md, the measurement log, may name files of its time.
+#    pages name in code spans (`docs/design.md`, `configs/...`); words with capitals or *, {}, <>
+#    stand for a user's names and are skipped. docs/results.md, the log, may name files of its time.
 /usr/bin/python3 - "$src" <<'PY' || exit 1
 import pathlib, re, sys
 root = pathlib.Path(sys.argv[1])
