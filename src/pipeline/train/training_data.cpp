@@ -281,9 +281,7 @@ ResolvedModel resolve_model(const TrainConfig& config, const Dataset& train_data
   const DataFacts facts = data_facts(config, train_data, probe);
   r.levels = resolve_levels(config, train_data);
   if (facts.eulerian) {
-    r.eulerian = true;
-    r.eulerian_spec = resolve_eulerian(config, train_data, facts);
-    r.adapter = std::make_shared<EulerianAdapter>(r.eulerian_spec);
+    r.adapter = std::make_shared<EulerianAdapter>(resolve_eulerian(config, train_data, facts));
     return r;
   }
   LagrangianSpec& s = r.spec;

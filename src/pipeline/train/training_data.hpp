@@ -35,9 +35,7 @@ uint64_t noise_seed(uint64_t seed, int64_t step, int slot);
 // What the data decides: the kind of model, dimensions, node types, position scale, contact,
 // walls, momentum conservation, levels.
 struct ResolvedModel {
-  bool eulerian = false;  // fields on a fixed mesh (velocity, no world_pos)
-  LagrangianSpec spec;
-  EulerianSpec eulerian_spec;
+  LagrangianSpec spec;  // Lagrangian data: the resolved features (the adapter holds a copy)
   int levels = 1;
   std::string momentum_note;      // why momentum conservation is off ("" when on or not asked)
   double momentum_residual = -1;  // measured on the training data when on
