@@ -11,7 +11,7 @@ SUDO  := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # Debian 12 packages the project needs (docs/design.md "Dependencies").
 DEPS := cmake g++ make pkg-config libtorch-dev libeigen3-dev libhdf5-dev libgmsh-dev gmsh \
         nlohmann-json3-dev libprotobuf-dev libgloo-dev libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev \
-        libopenblas0-pthread libgoogle-perftools-dev gnuplot-nox jq python3-h5py ccache ninja-build \
+        libopenblas0-pthread libdnnl-dev libgoogle-perftools-dev gnuplot-nox jq python3-h5py ccache ninja-build \
         pybind11-dev python3-dev python3-numpy python3-pytest python3-torch python3-matplotlib
 
 .PHONY: deps build test test-no-torch demo train-long hardcases bench fuzz sanitize sanitize-thread format clean
@@ -37,7 +37,7 @@ test: build
 # The parts that do not use LibTorch (core, preprocess, the solver and the data formats) built and
 # tested on their own, as on a machine without LibTorch: -DBSMS_TORCH=OFF in build-no-torch/, with
 # the Debian packages less LibTorch and Gloo. Not part of `make test` (CI time).
-NO_TORCH_DEPS := $(filter-out libtorch-dev libgloo-dev python3-torch,$(DEPS))
+NO_TORCH_DEPS := $(filter-out libtorch-dev libdnnl-dev libgloo-dev python3-torch,$(DEPS))
 test-no-torch:
 	$(MAKE) deps DEPS="$(NO_TORCH_DEPS)"
 	cmake -S . -B build-no-torch -DCMAKE_BUILD_TYPE=Release -DBSMS_TORCH=OFF

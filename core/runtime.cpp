@@ -120,11 +120,22 @@ std::string blas_core_override(const std::string& detected_core, const CpuFeatur
   return "";
 }
 
+std::string glibc_tunables_with_huge_pages(const std::string& tunables) {
+  if (tunables.find("glibc.malloc.hugetlb") != std::string::npos) return tunables;
+  return tunables.empty() ? "glibc.malloc.hugetlb=1" : tunables + ":glibc.malloc.hugetlb=1";
+}
+
 bool prepare_process_environment() {
   bool changed = false;
   if (std::getenv("OMP_WAIT_POLICY") == nullptr && std::getenv("GOMP_SPINCOUNT") == nullptr) {
     setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
     setenv("GOMP_SPINCOUNT", "100000", 1);
+    changed = true;
+  }
+  const char* tunables = std::getenv("GLIBC_TUNABLES");
+  const std::string with_huge_pages = glibc_tunables_with_huge_pages(tunables ? tunables : "");
+  if (with_huge_pages != (tunables ? tunables : "")) {
+    setenv("GLIBC_TUNABLES", with_huge_pages.c_str(), 1);
     changed = true;
   }
   if (std::getenv("OPENBLAS_CORETYPE") == nullptr) {

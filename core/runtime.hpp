@@ -61,8 +61,15 @@ std::string allocator_name();
 // AVX-512 core, a CPU without AVX2 + FMA, or no OpenBLAS).
 std::string blas_core_override(const std::string& detected_core, const CpuFeatures& cpu);
 
-// Environment that must be in place before libgomp and OpenBLAS load, so the program re-executes
-// itself (argv, via /proc/self/exe) when it has to change any of it:
+// GLIBC_TUNABLES with glibc.malloc.hugetlb=1 added (kept as it is when it sets that tunable
+// already): glibc's malloc then asks for transparent huge pages (madvise) on the memory it
+// maps, which Debian's kernels grant only on request. A 1M-node `bsms preprocess` (front end,
+// glibc's malloc) took 143,000 page faults without it and 9,500 with it: 6.4-7.1 s -> 4.4-5.3 s
+// wall on a Zen 5 VM, whose page faults are slow. tcmalloc, where linked, ignores the tunable.
+std::string glibc_tunables_with_huge_pages(const std::string& tunables);
+
+// Environment that must be in place before libgomp, OpenBLAS and glibc start, so the program
+// re-executes itself (argv, via /proc/self/exe) when it has to change any of it:
 // - libgomp's wait policy: unless the user set OMP_WAIT_POLICY or GOMP_SPINCOUNT, sets
 //   OMP_WAIT_POLICY=PASSIVE and GOMP_SPINCOUNT=100000: an idle worker spins ~1 ms, then sleeps.
 //   GNU's default (3 ms of spinning, throttled) stole the second core from the original model's
@@ -72,6 +79,8 @@ std::string blas_core_override(const std::string& detected_core, const CpuFeatur
 //   step 1.19-1.31 -> 0.81-0.94 ms.
 // - OpenBLAS's kernels: unless the user set OPENBLAS_CORETYPE (which is also how to opt out),
 //   sets blas_core_override's choice when there is one.
+// - glibc's malloc on transparent huge pages (glibc_tunables_with_huge_pages), unless the user's
+//   GLIBC_TUNABLES names glibc.malloc.hugetlb.
 // Returns only when nothing had to change or the re-exec failed (then: slower, still correct).
 void ensure_process_environment(char** argv);
 // The same settings without the re-exec, for a program about to execute another (the bsms front

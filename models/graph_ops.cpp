@@ -5,9 +5,14 @@
 #include <ATen/record_function.h>
 #include <torch/autograd.h>
 
+#include <oneapi/dnnl/dnnl.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "core/error.hpp"
@@ -51,10 +56,52 @@ torch::Tensor gemm_operand(const torch::Tensor& w, bool bf16 = bf16_products()) 
   return bf16 ? w.to(torch::kBFloat16).contiguous() : w;
 }
 
+// Float32 products go to oneDNN's sgemm rather than LibTorch's BLAS (OpenBLAS on Debian).
+// oneDNN chooses its kernels from the instruction sets the CPU reports. OpenBLAS 0.3.21 chooses
+// them from a table of CPU models (SSE3 kernels for a model it does not know) and follows any
+// OPENBLAS_CORETYPE left in the environment, so the same binary ran 1.6x slower in a shell that
+// had OPENBLAS_CORETYPE=Haswell set. oneDNN's kernels also beat OpenBLAS's best on the 128-wide
+// products of the edge MLPs (docs/results.md, "Speed on Zen 5"). Inside the kernels' parallel
+// regions oneDNN runs on the calling thread.
+struct SgemmOperand {
+  char trans = 'N';
+  int64_t ld = 0;
+  bool ok = false;
+};
+
+// A 2-D float32 tensor as oneDNN's row-major operand: rows contiguous ('N'), or columns ('T', a
+// transposed view).
+SgemmOperand sgemm_operand(const torch::Tensor& t) {
+  const int64_t rows = t.size(0), cols = t.size(1);
+  if (t.stride(1) == 1 && t.stride(0) >= std::max<int64_t>(1, cols))
+    return {'N', t.stride(0), true};
+  if (t.stride(0) == 1 && t.stride(1) >= std::max<int64_t>(1, rows))
+    return {'T', t.stride(1), true};
+  return {};
+}
+
+// out = a · b + beta · out through oneDNN; false when a layout does not fit (the caller falls
+// back to LibTorch).
+bool sgemm(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b, float beta) {
+  const int64_t m = a.size(0), k = a.size(1), n = b.size(1);
+  if (m == 0 || n == 0) return true;
+  const SgemmOperand oa = sgemm_operand(a), ob = sgemm_operand(b);
+  if (!oa.ok || !ob.ok || k == 0 || out.stride(1) != 1 || out.stride(0) < n) return false;
+  const dnnl_status_t status =
+      dnnl_sgemm(oa.trans, ob.trans, m, n, k, 1.0f, a.data_ptr<float>(), oa.ld, b.data_ptr<float>(),
+                 ob.ld, beta, out.data_ptr<float>(), out.stride(0));
+  if (status != dnnl_success) {
+    throw std::runtime_error("oneDNN sgemm failed (status " + std::to_string(status) + ") on " +
+                             std::to_string(m) + "x" + std::to_string(k) + " by " +
+                             std::to_string(k) + "x" + std::to_string(n));
+  }
+  return true;
+}
+
 // out = a · b, out and a float32; b float32 or gemm_operand's bfloat16.
 void gemm_out(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b) {
   if (b.scalar_type() != torch::kBFloat16) {
-    at::mm_out(out, a, b);
+    if (!sgemm(out, a, b, 0.0f)) at::mm_out(out, a, b);
     return;
   }
   out.copy_(at::mm(a.to(torch::kBFloat16), b));
@@ -63,14 +110,18 @@ void gemm_out(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b
 // out += a · b, as gemm_out.
 void gemm_add(torch::Tensor& out, const torch::Tensor& a, const torch::Tensor& b) {
   if (b.scalar_type() != torch::kBFloat16) {
-    out.addmm_(a, b);
+    if (!sgemm(out, a, b, 1.0f)) out.addmm_(a, b);
     return;
   }
   out.add_(at::mm(a.to(torch::kBFloat16), b));
 }
 
 torch::Tensor gemm(const torch::Tensor& a, const torch::Tensor& b) {
-  if (b.scalar_type() != torch::kBFloat16) return a.mm(b);
+  if (b.scalar_type() != torch::kBFloat16) {
+    auto out = torch::empty({a.size(0), b.size(1)}, a.options());
+    gemm_out(out, a, b);
+    return out;
+  }
   return at::mm(a.to(torch::kBFloat16), b).to(torch::kFloat32);
 }
 
@@ -1022,6 +1073,25 @@ torch::Tensor mlp_inference(const std::vector<torch::Tensor>& parts,
 
 void set_matmul_precision(MatmulPrecision precision) {
   g_matmul_precision.store(static_cast<int>(precision), std::memory_order_relaxed);
+}
+
+std::string matmul_library() {
+  static const std::pair<dnnl_cpu_isa_t, const char*> kIsas[] = {
+      {dnnl_cpu_isa_sse41, "sse41"},
+      {dnnl_cpu_isa_avx, "avx"},
+      {dnnl_cpu_isa_avx2, "avx2"},
+      {dnnl_cpu_isa_avx2_vnni, "avx2_vnni"},
+      {dnnl_cpu_isa_avx512_core, "avx512_core"},
+      {dnnl_cpu_isa_avx512_core_vnni, "avx512_core_vnni"},
+      {dnnl_cpu_isa_avx512_core_bf16, "avx512_core_bf16"},
+      {dnnl_cpu_isa_avx512_core_amx, "avx512_core_amx"}};
+  const dnnl_cpu_isa_t effective = dnnl_get_effective_cpu_isa();
+  std::string isa = "isa " + std::to_string(static_cast<int>(effective));
+  for (const auto& [value, name] : kIsas)
+    if (value == effective) isa = name;
+  const dnnl_version_t* v = dnnl_version();
+  return "oneDNN " + std::to_string(v->major) + "." + std::to_string(v->minor) + "." +
+         std::to_string(v->patch) + " sgemm, " + isa;
 }
 
 MatmulPrecision matmul_precision() {

@@ -5,6 +5,8 @@
 
 #include <torch/types.h>
 
+#include <string>
+
 #include "models/graph_tensors.hpp"
 
 namespace bsms {
@@ -39,6 +41,9 @@ int configure_threads(int threads);
 enum class MatmulPrecision { kFloat32, kBFloat16 };
 void set_matmul_precision(MatmulPrecision precision);
 MatmulPrecision matmul_precision();
+// The library and the instruction set of the float32 products, e.g. "oneDNN 2.6.3 sgemm,
+// avx512_core_bf16" (oneDNN's effective ISA on this CPU).
+std::string matmul_library();
 
 // One layer of mlp_inference: x · weightᵀ + bias (bias may be undefined), then ReLU if `relu`.
 struct DenseLayer {

@@ -65,6 +65,17 @@ TEST(BlasCoreOverride, NothingToSteerWithoutOpenBlasOrVectorUnits) {
   EXPECT_EQ(blas_core_override("Prescott", avx2_only), "");
 }
 
+// glibc's malloc on transparent huge pages: the tunable added to whatever the user set, never
+// over a hugetlb setting of theirs.
+TEST(GlibcTunables, HugePagesAddedUnlessTheUserChoseThem) {
+  EXPECT_EQ(glibc_tunables_with_huge_pages(""), "glibc.malloc.hugetlb=1");
+  EXPECT_EQ(glibc_tunables_with_huge_pages("glibc.malloc.arena_max=2"),
+            "glibc.malloc.arena_max=2:glibc.malloc.hugetlb=1");
+  EXPECT_EQ(glibc_tunables_with_huge_pages("glibc.malloc.hugetlb=0"), "glibc.malloc.hugetlb=0");
+  EXPECT_EQ(glibc_tunables_with_huge_pages("glibc.malloc.arena_max=2:glibc.malloc.hugetlb=2"),
+            "glibc.malloc.arena_max=2:glibc.malloc.hugetlb=2");
+}
+
 TEST(CpuFeatures, AgreeWithTheKernelsFlags) {
   std::ifstream cpuinfo("/proc/cpuinfo");
   if (!cpuinfo) GTEST_SKIP() << "no /proc/cpuinfo";

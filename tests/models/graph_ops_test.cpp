@@ -116,6 +116,14 @@ TEST(GraphOps, LinearMatchesAddmm) {
   }
 }
 
+// The float32 products run in oneDNN (whose kernels follow the CPU's instruction sets, not a
+// BLAS's table of CPU models); training records this name in train_stats.json.
+TEST(GraphOps, FloatProductsNameTheirLibraryAndInstructionSet) {
+  const std::string name = matmul_library();
+  EXPECT_EQ(name.rfind("oneDNN ", 0), 0u) << name;
+  EXPECT_NE(name.find(" sgemm, "), std::string::npos) << name;
+}
+
 // bfloat16 products (MatmulPrecision): linear's value and gradients, and the fused inference
 // kernel, within bfloat16's rounding of the float32 ones (8 significant bits: a relative error of
 // ~0.4 % per operand), but not equal to them (the products did run in bfloat16); the backward

@@ -31,6 +31,7 @@ TrainStats distributed_stats() {
   s.allreduce_calls_per_step = 1.0;
   s.blas = "OpenBLAS 0.3.21 NO_LAPACKE DYNAMIC_ARCH NO_AFFINITY SkylakeX MAX_THREADS=64";
   s.allocator = "gperftools 2.10 tcmalloc";
+  s.matmul = "oneDNN 2.6.3 sgemm, avx512_core_bf16";
   return s;
 }
 
@@ -57,6 +58,7 @@ TEST(TrainStatsFile, RoundTripsThroughTheFile) {
   EXPECT_EQ(back.valid_split, "train");
   EXPECT_EQ(back.blas, s.blas);
   EXPECT_EQ(back.allocator, "gperftools 2.10 tcmalloc");
+  EXPECT_EQ(back.matmul, s.matmul);
   ASSERT_TRUE(back.allreduce_ms_per_step.has_value());
   EXPECT_DOUBLE_EQ(*back.allreduce_ms_per_step, 1.5);
   EXPECT_EQ(to_json(back).dump(), written.dump());

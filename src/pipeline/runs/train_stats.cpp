@@ -21,6 +21,7 @@ Json to_json(const TrainStats& s) {
             {"num_parameters", s.num_parameters},
             {"valid_split", s.valid_split}};
   if (!s.blas.empty()) j["blas"] = s.blas;
+  if (!s.matmul.empty()) j["matmul"] = s.matmul;
   if (!s.allocator.empty()) j["allocator"] = s.allocator;
   if (s.allreduce_ms_per_step) j["allreduce_ms_per_step"] = *s.allreduce_ms_per_step;
   if (s.allreduce_calls_per_step) j["allreduce_calls_per_step"] = *s.allreduce_calls_per_step;
@@ -50,6 +51,7 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
   require(s.valid_split == "valid" || s.valid_split == "train", r.context("valid_split"),
           "\"valid\" or \"train\"");
   if (r.has("blas")) s.blas = r.get<std::string>("blas");
+  if (r.has("matmul")) s.matmul = r.get<std::string>("matmul");
   if (r.has("allocator")) s.allocator = r.get<std::string>("allocator");
   if (r.has("allreduce_ms_per_step"))
     s.allreduce_ms_per_step = read_at_least(r, "allreduce_ms_per_step");

@@ -28,6 +28,9 @@ struct TrainStats {
   // The BLAS build and kernels the session ran with (OpenBLAS's openblas_get_config, e.g.
   // "OpenBLAS 0.3.21 ... DYNAMIC_ARCH ... SkylakeX ..."); empty when not OpenBLAS or not recorded.
   std::string blas;
+  // The library and instruction set of the models' float32 products (models/graph_ops.hpp
+  // matmul_library, e.g. "oneDNN 2.6.3 sgemm, avx512_core_bf16"); empty when not recorded.
+  std::string matmul;
   // The malloc the session ran with (core/runtime.hpp allocator_name); empty when not recorded.
   std::string allocator;
   // Data-parallel sessions: rank 0's time in the gradient all-reduce per step (waiting for slower

@@ -552,6 +552,7 @@ void TrainSession::write_stats(const FitResult& fitted, double last_loss,
   stats.num_parameters = simulator_->num_parameters();
   stats.valid_split = has_valid_ ? "valid" : "train";
   stats.blas = blas_config();
+  stats.matmul = matmul_library();
   stats.allocator = allocator_name();
   stats.seconds_to_first_step = seconds_to_first_step_;
   const GraphStore::Stats graphs = store_->stats();
