@@ -5,9 +5,9 @@ alternating in one run: the training and inference step of each, on the same mes
         [--rounds 3] [--threads 2]
 
 PATH/TO/BSMS-GNN is a checkout of the original (tested at accc092); nothing of it is copied here.
-Its src/ is imported unmodified; the imports it uses only for logging, plots and MKL's sparse
-product (wandb, tabulate, sparse_dot_mkl) are stubbed when missing, the sparse product (graph
-building only) by SciPy's.
+Its src/ is imported unmodified; the modules it imports only for logging, plots and MKL's sparse
+product (wandb, tabulate, sparse_dot_mkl) are replaced, when not installed, by stand-ins that do
+nothing (wandb, tabulate) or call SciPy (the sparse product, used in graph building only).
 
 The case is bench_models' 2.6K: a 65 x 40 rectangle of nodes 1 cm apart, each square cut in two
 triangles with alternating diagonals; 5 levels (the original's unet_depth 4, its own bi-stride
@@ -50,20 +50,20 @@ def ensure_environment(original_env):
     os.execve(sys.executable, [sys.executable] + sys.argv, env)
 
 
-def stub_missing_modules():
+def provide_missing_modules():
     import importlib.util
 
     import scipy.sparse  # noqa: F401
 
-    def stub(name, **attrs):
+    def stand_in(name, **attrs):
         if importlib.util.find_spec(name) is None:
             module = types.ModuleType(name)
             module.__dict__.update(attrs)
             sys.modules[name] = module
 
-    stub("wandb", Image=lambda *a, **k: None, log=lambda *a, **k: None)
-    stub("tabulate", tabulate=lambda *a, **k: "")
-    stub("sparse_dot_mkl", dot_product_mkl=lambda a, b: a @ b)
+    stand_in("wandb", Image=lambda *a, **k: None, log=lambda *a, **k: None)
+    stand_in("tabulate", tabulate=lambda *a, **k: "")
+    stand_in("sparse_dot_mkl", dot_product_mkl=lambda a, b: a @ b)
 
 
 def blas_core():
@@ -114,7 +114,7 @@ class Original:
         import torch
 
         sys.path.insert(0, src)
-        stub_missing_modules()
+        provide_missing_modules()
         from graph_wrappers import BistrideMultiLayerGraph
         from ops import BSGMP, MLP
 
