@@ -21,15 +21,16 @@ torch::Tensor edge_first_layer(const torch::Tensor& base, const torch::Tensor& f
                                const EdgeIndex& edges);
 
 // x · weightᵀ + bias, optionally followed by ReLU. The GEMMs are split over the LibTorch threads
-// (row blocks; output blocks for the weight gradient) with single-threaded BLAS calls, and bias
-// and ReLU are applied to each block while it is in cache.
+// (row blocks; output blocks for the weight gradient), each block one oneDNN sgemm on its worker
+// thread, and bias and ReLU are applied to each block while it is in cache.
 // x [R, in], weight [out, in], bias [out] or undefined -> [R, out].
 torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
                      bool relu);
 
 // LibTorch's half of core/runtime.hpp's set_num_threads: sets LibTorch's thread count (<= 0: keep
-// it) and makes OpenBLAS single-threaded (core's single_threaded_blas), because linear() splits
-// GEMMs over LibTorch's OpenMP pool itself. Returns the LibTorch thread count.
+// it) and makes OpenBLAS single-threaded (core's single_threaded_blas): the kernels split their
+// products over LibTorch's OpenMP pool themselves, and a product that falls back to LibTorch's
+// BLAS inside a worker must not start threads of its own. Returns the LibTorch thread count.
 int configure_threads(int threads);
 
 // Precision of the kernels' matrix products. kBFloat16: both operands rounded to bfloat16 and
