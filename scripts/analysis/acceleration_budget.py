@@ -68,9 +68,8 @@ def main():
         accel.append(acc.reshape(-1, x.shape[2]))
         speed.append(np.linalg.norm(x[1:-1] - x[:-2], axis=2).reshape(-1))
         total += float((acc ** 2).sum())
-        for t in range(acc.shape[0]):
-            for b in np.unique(body):
-                on = body == b
+        for on in [body == b for b in np.unique(body)]:
+            for t in range(acc.shape[0]):
                 rigid += rigid_share(acc[t, on], x[t + 1, on])
     acc = np.concatenate(accel)
     speed = np.concatenate(speed)
