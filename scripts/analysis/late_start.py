@@ -59,7 +59,9 @@ def main():
         for s in starts:
             seen = [x[k].astype(np.float32) for k in range(s + 1)]
             for t in range(s, frames - 1):
-                seen.append(run.predict(mesh, seen, prescribed=x[t + 1].astype(np.float32)))
+                # The model reads only the last history + 1 frames: pass no more than those.
+                recent = seen[-(run.history + 1):]
+                seen.append(run.predict(mesh, recent, prescribed=x[t + 1].astype(np.float32)))
             p = np.stack(seen).astype(np.float64)
             model[s] += ((p[last + 1:] - x[last + 1:]) ** 2).sum()
         prev, cur = x[last - 1], x[last]
