@@ -241,6 +241,11 @@ class Run:
         return self._run.dim
 
     @property
+    def checkpoint(self):
+        """The checkpoint predict() uses: "best" (selected by validation rollouts) or "latest"."""
+        return self._run.checkpoint
+
+    @property
     def history(self):
         """Velocities the model sees: predict() uses the last history + 1 positions given."""
         return self._run.history

@@ -128,6 +128,7 @@ void bind_torch(py::module_& m) {
            py::arg("run"), py::arg("data"), py::arg("split"), py::arg("seeding"))
       .def_property_readonly("model_type", [](const PyRun& r) { return r.model.model_type; })
       .def_property_readonly("levels", [](const PyRun& r) { return r.folder.levels; })
+      .def_property_readonly("checkpoint", [](const PyRun& r) { return r.model.checkpoint; })
       .def_property_readonly("dim", [](const PyRun& r) { return r.model.spec.dim; })
       .def_property_readonly("history", [](const PyRun& r) { return r.model.spec.history; })
       .def_property_readonly("config_path", [](const PyRun& r) { return r.folder.config_path; })

@@ -1,6 +1,6 @@
 // bsms rollout RUN [--split test] [--data DIR] [--seeding S] [--out DIR]
 // [--max-trajectories K] [--max-steps S] [--one-step] [--ensemble RUN2,...] [--symmetrize]
-// [--project LIST] [--threads T]
+// [--project LIST] [--checkpoint best|latest] [--threads T]
 #include "cli/command.hpp"
 #include "cli/programs.hpp"
 #include "core/physical_projection.hpp"
@@ -38,6 +38,10 @@ BSMS_COMMAND("rollout", bsms::cli::handed_command_help("rollout"), [](CLI::App& 
                "(reflections, equal-side axis swaps; default output "
                "RUN/rollout_symmetric)");
   bsms::cli::add_projection_option(sub, r->projection);
+  sub.add_option("--checkpoint", r->checkpoint,
+                 "the run's checkpoint: best (selected by validation rollouts, train config "
+                 "valid_rollout_every) or latest (default: best when the run has one)")
+      ->check(CLI::IsMember({"best", "latest"}));
   bsms::cli::add_threads_option(sub, r->threads);
   sub.footer(
       "Writes RUN/rollout/<split>.h5 (predicted world_pos and target_world_pos, dataset\n"

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -612,6 +613,119 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   int lines = 0;
   for (std::string line; std::getline(log, line);) ++lines;
   EXPECT_EQ(lines, 41);
+}
+
+// One row of RUN/valid_rollout.csv: step, rmse_all, best flag.
+struct ScoredCheckpoint {
+  int64_t step = 0;
+  double rmse = 0.0;
+  bool best = false;
+};
+
+std::vector<ScoredCheckpoint> read_valid_rollout_log(const std::string& run) {
+  std::ifstream in(run_valid_rollout_log_path(run));
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "step,wall_s,trajectories,rmse_all,constant_velocity,ratio,best");
+  std::vector<ScoredCheckpoint> rows;
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream fields(line);
+    for (std::string cell; std::getline(fields, cell, ',');) cells.push_back(cell);
+    EXPECT_EQ(cells.size(), 7u) << line;
+    if (cells.size() != 7) continue;
+    EXPECT_EQ(cells[2], "2") << line;  // valid_rollout_trajectories
+    rows.push_back({std::stoll(cells[0]), std::stod(cells[3]), cells[6] == "1"});
+  }
+  return rows;
+}
+
+// Checkpoint selection by rollout: every scored checkpoint is in the log with the RMSE-all of a
+// rollout over the first valid trajectories, which an independent rollout of the kept checkpoint
+// reproduces; best.h5 is the lowest-scoring one, bsms rollout takes it by default, and a resumed
+// run keeps scoring against the best of the first session.
+TEST_F(PipelineTest, CheckpointSelectionKeepsTheBestValidationRollout) {
+  TrainRequest r;
+  r.config_path = write_config(dir_, dir_ / "data", "mgn", 80);
+  r.overrides = {"valid_rollout_every=20", "valid_rollout_trajectories=2"};
+  r.out = (dir_ / "run_select").string();
+  r.threads = 1;
+  r.quiet = true;
+  fs::remove_all(r.out);
+  r.until = 40;  // two sessions: the second resumes with the first's best
+  train(r);
+  r.until = 0;
+  r.resume = true;
+  EXPECT_EQ(train(r).steps, 80);
+
+  const std::vector<ScoredCheckpoint> rows = read_valid_rollout_log(r.out);
+  ASSERT_EQ(rows.size(), 4u);
+  double lowest = 1e300;
+  int64_t lowest_step = 0;
+  for (size_t k = 0; k < rows.size(); ++k) {
+    EXPECT_EQ(rows[k].step, 20 * static_cast<int64_t>(k + 1));
+    EXPECT_TRUE(std::isfinite(rows[k].rmse) && rows[k].rmse > 0);
+    // A row is flagged best exactly when it beats every row before it (across the sessions).
+    EXPECT_EQ(rows[k].best, rows[k].rmse < lowest) << "step " << rows[k].step;
+    if (rows[k].rmse < lowest) {
+      lowest = rows[k].rmse;
+      lowest_step = rows[k].step;
+    }
+  }
+  const TrainStats stats = read_train_stats(run_stats_path(r.out));
+  ASSERT_TRUE(stats.best_step && stats.best_valid_rollout_rmse);
+  EXPECT_EQ(*stats.best_step, lowest_step);
+  EXPECT_NEAR(*stats.best_valid_rollout_rmse, lowest, 1e-5 * lowest);
+
+  RolloutRequest q;
+  q.run = r.out;
+  q.split = "valid";
+  q.max_trajectories = 2;
+  q.threads = 1;
+  q.quiet = true;
+  q.out = (dir_ / "run_select_best").string();
+  const RolloutMetrics best = rollout(q);  // default: the best checkpoint
+  EXPECT_EQ(best.checkpoint, "best");
+  ASSERT_TRUE(best.checkpoint_step && best.rmse_all);
+  EXPECT_EQ(*best.checkpoint_step, lowest_step);
+  EXPECT_NEAR(best.rmse_all->at("world_pos"), lowest, 1e-5 * lowest);
+  q.checkpoint = "latest";
+  q.out = (dir_ / "run_select_latest").string();
+  const RolloutMetrics latest = rollout(q);
+  EXPECT_EQ(latest.checkpoint, "latest");
+  ASSERT_TRUE(latest.checkpoint_step && latest.rmse_all);
+  EXPECT_EQ(*latest.checkpoint_step, 80);
+  EXPECT_NEAR(latest.rmse_all->at("world_pos"), rows.back().rmse, 1e-5 * rows.back().rmse);
+  EXPECT_GE(latest.rmse_all->at("world_pos"), best.rmse_all->at("world_pos") * (1 - 1e-6));
+
+  // A run trained without selection has no best checkpoint to ask for.
+  TrainRequest plain = r;
+  plain.overrides.clear();
+  plain.resume = false;
+  plain.out = (dir_ / "run_select_none").string();
+  fs::remove_all(plain.out);
+  plain.until = 20;
+  train(plain);
+  q.run = plain.out;
+  q.checkpoint = "best";
+  q.out = (dir_ / "run_select_none_rollout").string();
+  try {
+    rollout(q);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("best.h5"), std::string::npos) << e.what();
+  }
+  q.checkpoint.clear();
+  EXPECT_EQ(rollout(q).checkpoint, "latest");
+  // The scoring interval must fall on checkpoints.
+  plain.overrides = {"valid_rollout_every=30"};
+  plain.out = (dir_ / "run_select_bad").string();
+  try {
+    train(plain);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("valid_rollout_every"), std::string::npos) << e.what();
+  }
 }
 
 // A run older bsms left (RUN/checkpoints/latest.pt, a LibTorch archive, no latest.h5) is refused

@@ -22,8 +22,10 @@ def test_rollout_equals_cli(tiny_run, tmp_path):
     cli("rollout", tiny_run, "--out", tmp_path / "cli", "--threads", 1, "--project", "walls")
     run = bsms.Run(tiny_run)
     assert run.model_type == "bsms" and run.levels == 2 and run.dim == 2
+    assert run.checkpoint == "latest"  # trained without checkpoint selection
     metrics = run.rollout(out=tmp_path / "python", threads=1, project=["walls"])
     stored = json.loads((tmp_path / "cli/metrics.json").read_text())
+    assert stored["checkpoint"] == "latest" and stored["checkpoint_step"] > 0
     assert without_timing(metrics) == without_timing(stored)
     assert metrics["rmse_all"]["world_pos"] > 0 and metrics["rmse_all_constant_velocity"] > 0
     a = bsms.Dataset(tmp_path / "cli/test.h5")[0]

@@ -59,11 +59,12 @@ class EulerianRollout final : public RolloutDomain {
   torch::Tensor next_, next_p_, next_mask_;  // step()'s prediction, until accept()
 };
 
-// The run's model, checkpoint loaded, in evaluation mode.
-std::shared_ptr<LearnedSimulator> load_model(const RunFolder& folder, const EulerianSpec& spec) {
+// The run's model, checkpoint `path` loaded (its step in `step`), in evaluation mode.
+std::shared_ptr<LearnedSimulator> load_model(const RunFolder& folder, const EulerianSpec& spec,
+                                             const std::string& path, int64_t& step) {
   auto simulator = std::make_shared<LearnedSimulator>(EulerianAdapter(spec).model_shape(),
                                                       folder.config.model, folder.levels);
-  load_checkpoint(run_checkpoint_path(folder.dir), *simulator, nullptr);
+  step = load_checkpoint(path, *simulator, nullptr).step;
   simulator->eval();
   return simulator;
 }
@@ -183,10 +184,14 @@ std::unique_ptr<RolloutDomain> eulerian_rollout(const RolloutRequest& request,
                      "Eulerian (velocity)");
   const int threads = configure_threads(set_num_threads(request.threads));
   EulerianSpec spec = eulerian_spec_from_json(folder.features_resolved, folder.config_path);
-  auto simulator = load_model(folder, spec);
+  const std::string checkpoint = run_model_checkpoint(folder.dir, request.checkpoint);
+  int64_t step = 0;
+  auto simulator = load_model(folder, spec, checkpoint, step);
   auto domain =
       std::make_unique<EulerianRollout>(request, folder, std::move(spec), std::move(simulator));
   domain->threads = threads;
+  domain->checkpoint = checkpoint == run_checkpoint_path(folder.dir) ? "latest" : "best";
+  domain->checkpoint_step = step;
   return domain;
 }
 

@@ -68,7 +68,8 @@ struct MotionErrorSum {
 
 // A further run of an ensemble: Lagrangian, predicting what the first run predicts.
 RolloutModel open_member(const std::string& run, const LagrangianSpec& first, const Dataset& data,
-                         const std::string& data_dir, const std::string& seeding) {
+                         const std::string& data_dir, const std::string& seeding,
+                         const std::string& checkpoint) {
   const RunFolder folder = RunFolder::open(run);
   const Json& features = folder.features_resolved;
   if (features.is_object() && features.value("kind", std::string()) == "eulerian")
@@ -82,7 +83,7 @@ RolloutModel open_member(const std::string& run, const LagrangianSpec& first, co
                      "; the first run " + (first.first_order ? "velocities" : "accelerations") +
                      " in " + std::to_string(first.dim) + "-D" +
                      (first.stress ? " and stress" : ""));
-  return open_rollout_model(folder, data, data_dir, seeding);
+  return open_rollout_model(folder, data, data_dir, seeding, checkpoint);
 }
 
 bool has_simplices(const Dataset& data, int dim) {
@@ -184,12 +185,15 @@ LagrangianRollout::LagrangianRollout(const RolloutRequest& request, const RunFol
 
 void LagrangianRollout::open_models(const RunFolder& folder) {
   const std::string data_dir = request_.data.empty() ? folder.config.data : request_.data;
-  first_ = open_rollout_model(folder, *data_, data_dir, request_.seeding);
+  first_ = open_rollout_model(folder, *data_, data_dir, request_.seeding, request_.checkpoint);
   spec_ = first_.spec;
   seeding = first_.seeding;
+  checkpoint = first_.checkpoint;
+  checkpoint_step = first_.checkpoint_step;
   model_name_ = first_.model_type;
   for (const std::string& other : request_.ensemble) {
-    members_.push_back(open_member(other, spec_, *data_, data_dir, request_.seeding));
+    members_.push_back(
+        open_member(other, spec_, *data_, data_dir, request_.seeding, request_.checkpoint));
     model_name_ += "+" + members_.back().model_type;
   }
 }

@@ -127,6 +127,8 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   metrics.split = request.split;
   metrics.data = data.location();
   metrics.num_trajectories = count;
+  metrics.checkpoint = domain->checkpoint;
+  metrics.checkpoint_step = domain->checkpoint_step;
   metrics.rmse_1 = curves.rmse_over(1);
   metrics.rmse_50 = curves.rmse_over(50);
   metrics.rmse_all = curves.rmse_over(curves.steps());
@@ -143,9 +145,10 @@ RolloutMetrics rollout(const RolloutRequest& request) {
   }
   write_json_atomic((out_dir / "metrics.json").string(), to_json(metrics));
   if (!request.quiet)
-    std::cerr << "bsms rollout: " << count << " trajectories, " << summary << ", "
-              << metrics.infer_ms_per_step << " ms/step -> " << (out_dir / "metrics.json").string()
-              << "\n";
+    std::cerr << "bsms rollout: " << metrics.checkpoint << " checkpoint (step "
+              << metrics.checkpoint_step.value_or(0) << "), " << count << " trajectories, "
+              << summary << ", " << metrics.infer_ms_per_step << " ms/step -> "
+              << (out_dir / "metrics.json").string() << "\n";
   return metrics;
 }
 

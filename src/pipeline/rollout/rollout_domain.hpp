@@ -89,6 +89,8 @@ class RolloutDomain {
   Seeding seeding = Seeding::kMinAve;  // of the run's graphs in this rollout
   int levels = 1;
   int threads = 1;
+  std::string checkpoint;  // the run's checkpoint rolled out: "best" or "latest"
+  int64_t checkpoint_step = 0;
 
  protected:
   RolloutLayout layout_;

@@ -8,7 +8,8 @@
 namespace bsms {
 
 RolloutModel open_rollout_model(const RunFolder& folder, const Dataset& data,
-                                const std::string& data_dir, const std::string& seeding) {
+                                const std::string& data_dir, const std::string& seeding,
+                                const std::string& checkpoint) {
   namespace fs = std::filesystem;
   RolloutModel m;
   m.model_type = folder.config.model.type;
@@ -17,7 +18,9 @@ RolloutModel open_rollout_model(const RunFolder& folder, const Dataset& data,
   m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
   m.simulator = std::make_shared<LearnedSimulator>(m.adapter->model_shape(), folder.config.model,
                                                    folder.levels);
-  load_checkpoint(run_checkpoint_path(folder.dir), *m.simulator, nullptr);
+  const std::string path = run_model_checkpoint(folder.dir, checkpoint);
+  m.checkpoint = path == run_checkpoint_path(folder.dir) ? "latest" : "best";
+  m.checkpoint_step = load_checkpoint(path, *m.simulator, nullptr).step;
   m.simulator->eval();
   const std::vector<std::string> cache_dirs = multilevel_cache_dirs(data_dir, folder.dir);
   std::error_code ec;

@@ -20,6 +20,8 @@ namespace bsms {
 // data's scene, and its multilevel graphs (cached in DATA/multilevel and RUN/multilevel).
 struct RolloutModel {
   std::string model_type;
+  std::string checkpoint;  // "best" or "latest" (run_model_checkpoint)
+  int64_t checkpoint_step = 0;
   LagrangianSpec spec;
   Seeding seeding = Seeding::kMinAve;
   std::shared_ptr<LearnedSimulator> simulator;
@@ -28,9 +30,11 @@ struct RolloutModel {
 };
 
 // Opens a Lagrangian run for rolling out on `data` (read from folder `data_dir`). `seeding`: the
-// multilevel seeding at test time, empty for the training seeding.
+// multilevel seeding at test time, empty for the training seeding; `checkpoint`: which of the
+// run's checkpoints (run_model_checkpoint: "best", "latest", or "" for the best when there is one).
 RolloutModel open_rollout_model(const RunFolder& folder, const Dataset& data,
-                                const std::string& data_dir, const std::string& seeding);
+                                const std::string& data_dir, const std::string& seeding,
+                                const std::string& checkpoint = "");
 
 // One predicted step: the positions at t+1 [N, dim] from `frames` (world positions [N, dim] at
 // t - k, ..., t - 1, t; oldest first, at least 2), the nodes the model does not move taken from

@@ -13,9 +13,12 @@ namespace bsms {
 struct RolloutRequest {
   std::string run;
   std::string split = "test";
-  std::string data;              // dataset folder; empty: the run's training data folder
-  std::string seeding;           // multilevel seeding at test time; empty: the training seeding
-  std::string out;               // output folder; empty: RUN/rollout
+  std::string data;     // dataset folder; empty: the run's training data folder
+  std::string seeding;  // multilevel seeding at test time; empty: the training seeding
+  std::string out;      // output folder; empty: RUN/rollout
+  // The run's checkpoint: "best" (selected by validation rollouts), "latest", or empty for the
+  // best one when the run has it (run_model_checkpoint).
+  std::string checkpoint;
   int64_t max_trajectories = 0;  // 0: all
   int64_t max_steps = 0;         // 0: whole trajectories
   int threads = 0;

@@ -382,6 +382,8 @@ Json to_json(const RolloutMetrics& m) {
   j["train_ms_per_step"] = nullable_json(m.train_ms_per_step);
   j["peak_rss_mb_train"] = nullable_json(m.peak_rss_mb_train);
   if (m.train_steps) j["train_steps"] = *m.train_steps;
+  if (!m.checkpoint.empty()) j["checkpoint"] = m.checkpoint;
+  if (m.checkpoint_step) j["checkpoint_step"] = *m.checkpoint_step;
   return j;
 }
 
@@ -466,6 +468,11 @@ RolloutMetrics rollout_metrics_from_json(const Json& json, const std::string& fi
   m.train_ms_per_step = read_nullable(r, "train_ms_per_step");
   m.peak_rss_mb_train = read_nullable(r, "peak_rss_mb_train");
   if (r.has("train_steps")) m.train_steps = read_int_at_least<int64_t>(r, "train_steps", 0);
+  m.checkpoint = r.opt<std::string>("checkpoint", "");
+  require(m.checkpoint.empty() || m.checkpoint == "best" || m.checkpoint == "latest",
+          r.context("checkpoint"), "\"best\" or \"latest\"");
+  if (r.has("checkpoint_step"))
+    m.checkpoint_step = read_int_at_least<int64_t>(r, "checkpoint_step", 0);
   r.finish();
   return m;
 }

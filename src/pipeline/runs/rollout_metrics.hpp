@@ -122,6 +122,10 @@ struct RolloutMetrics {
   std::string data;     // the dataset rolled out
   std::string seeding;  // of the multilevel graphs
   int64_t num_trajectories = 0;
+  // The checkpoint rolled out ("checkpoint": "best" or "latest"; older files have none) and the
+  // training step it was saved at ("checkpoint_step").
+  std::string checkpoint;
+  std::optional<int64_t> checkpoint_step;
   // Teacher forcing (bsms rollout --one-step): every step from the true frames, so the RMSE
   // figures are one-step errors and the references one step from the truth. "one_step": true.
   bool one_step = false;

@@ -14,6 +14,13 @@ namespace bsms {
 // Files of a run folder (docs/design.md "Runs").
 std::string run_config_path(const std::string& run);
 std::string run_checkpoint_path(const std::string& run);
+// RUN/checkpoints/best.h5: the checkpoint whose validation rollout scored best (train config
+// valid_rollout_every), and RUN/valid_rollout.csv, the score of every one rolled out.
+std::string run_best_checkpoint_path(const std::string& run);
+std::string run_valid_rollout_log_path(const std::string& run);
+// The checkpoint a rollout (or the Python module) loads from a run: `which` = "best" (an
+// InputError when the run has none), "latest", or "" (best when the run has one, else latest).
+std::string run_model_checkpoint(const std::string& run, const std::string& which);
 std::string run_log_path(const std::string& run);
 std::string run_stats_path(const std::string& run);
 std::string run_checkpoint_dir(const std::string& run);

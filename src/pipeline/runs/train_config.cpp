@@ -18,6 +18,15 @@ void parse_run_keys(JsonObjectReader& top, TrainConfig& c) {
   require(c.valid_every >= 1, top.context("valid_every"), "a positive integer");
   c.valid_samples = top.opt<int>("valid_samples", c.valid_samples);
   require(c.valid_samples >= 1, top.context("valid_samples"), "a positive integer");
+  c.valid_rollout_every = top.opt<int64_t>("valid_rollout_every", c.valid_rollout_every);
+  require(c.valid_rollout_every >= 0 && c.valid_rollout_every % c.valid_every == 0,
+          top.context("valid_rollout_every"),
+          "0 (off) or a positive multiple of valid_every (" + std::to_string(c.valid_every) +
+              "): the rollouts score checkpoints");
+  c.valid_rollout_trajectories =
+      top.opt<int>("valid_rollout_trajectories", c.valid_rollout_trajectories);
+  require(c.valid_rollout_trajectories >= 1, top.context("valid_rollout_trajectories"),
+          "a positive integer");
   c.normalizer_steps = top.opt<int64_t>("normalizer_steps", c.normalizer_steps);
   require(c.normalizer_steps >= 1, top.context("normalizer_steps"), "a positive integer");
   c.seed = top.opt<uint64_t>("seed", c.seed);
@@ -222,6 +231,8 @@ Json to_json(const TrainConfig& c) {
          {"time_budget_s", c.time_budget_s},
          {"valid_every", c.valid_every},
          {"valid_samples", c.valid_samples},
+         {"valid_rollout_every", c.valid_rollout_every},
+         {"valid_rollout_trajectories", c.valid_rollout_trajectories},
          {"normalizer_steps", c.normalizer_steps},
          {"seed", c.seed},
          {"graph_cache_mb", c.graph_cache_mb},

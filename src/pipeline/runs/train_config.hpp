@@ -126,6 +126,13 @@ struct TrainConfig {
   double time_budget_s = 0.0;  // > 0: also stop after this many wall seconds of training
   int64_t valid_every = 200;   // validation loss and checkpoint every this many steps
   int valid_samples = 64;      // (trajectory, frame) samples in each validation
+  // Checkpoint selection by rollout: every this many steps (a multiple of valid_every; 0 = off)
+  // and at the last step, the checkpoint just written is rolled out over the first
+  // valid_rollout_trajectories trajectories of the valid split (RUN/valid_rollout.csv) and kept
+  // as RUN/checkpoints/best.h5 when its RMSE-all is the lowest so far. One-step losses can keep
+  // falling while rollouts get worse; this is what the rollout a user runs is scored on.
+  int64_t valid_rollout_every = 0;
+  int valid_rollout_trajectories = 8;
   // Batches whose statistics settle the normalizers before the first optimizer step.
   int64_t normalizer_steps = 1000;
   uint64_t seed = 0;

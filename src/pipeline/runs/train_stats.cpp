@@ -29,6 +29,8 @@ Json to_json(const TrainStats& s) {
   if (s.graphs_made) j["graphs_made"] = *s.graphs_made;
   if (s.graphs_evicted) j["graphs_evicted"] = *s.graphs_evicted;
   if (s.graph_cache_peak_mb) j["graph_cache_peak_mb"] = *s.graph_cache_peak_mb;
+  if (s.best_step) j["best_step"] = *s.best_step;
+  if (s.best_valid_rollout_rmse) j["best_valid_rollout_rmse"] = *s.best_valid_rollout_rmse;
   return j;
 }
 
@@ -63,6 +65,9 @@ TrainStats train_stats_from_json(const Json& json, const std::string& file) {
   if (r.has("graphs_evicted"))
     s.graphs_evicted = read_int_at_least<int64_t>(r, "graphs_evicted", 0);
   if (r.has("graph_cache_peak_mb")) s.graph_cache_peak_mb = read_at_least(r, "graph_cache_peak_mb");
+  if (r.has("best_step")) s.best_step = read_int_at_least<int64_t>(r, "best_step", 0);
+  if (r.has("best_valid_rollout_rmse"))
+    s.best_valid_rollout_rmse = read_at_least(r, "best_valid_rollout_rmse");
   r.finish();
   return s;
 }

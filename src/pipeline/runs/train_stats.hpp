@@ -43,6 +43,10 @@ struct TrainStats {
   // evicted under graph_cache_mb, and the most held at once.
   std::optional<int64_t> graphs_made, graphs_evicted;
   std::optional<double> graph_cache_peak_mb;
+  // Checkpoint selection by rollout (train config valid_rollout_every): the step of
+  // RUN/checkpoints/best.h5 and its validation rollout's RMSE-all; none without selection.
+  std::optional<int64_t> best_step;
+  std::optional<double> best_valid_rollout_rmse;
 };
 
 Json to_json(const TrainStats& stats);

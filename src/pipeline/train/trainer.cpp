@@ -10,11 +10,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -28,6 +30,7 @@
 #include "pipeline/adapters/eulerian.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/rollout/rollout.hpp"
 #include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_log.hpp"
 #include "pipeline/runs/train_stats.hpp"
@@ -62,6 +65,51 @@ std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fr
     AtomicOutput out(path);
     std::ofstream f(out.temp_path());
     f << kTrainLogHeader << '\n';
+    for (const auto& l : kept) f << l << '\n';
+    f.close();
+    out.commit();
+  }
+  return std::ofstream(path, std::ios::app);
+}
+
+// RUN/valid_rollout.csv: one row per checkpoint scored by a validation rollout.
+constexpr const char* kValidRolloutHeader =
+    "step,wall_s,trajectories,rmse_all,constant_velocity,ratio,best";
+
+struct RolloutScore {
+  int64_t step = 0;
+  double rmse = 0.0;
+};
+
+// Keeps the whole rows of RUN/valid_rollout.csv up to `keep_until_step` (resume; none when
+// `fresh`), rewrites it and returns it for appending; `best` gets the lowest RMSE among them.
+std::ofstream open_valid_rollout_log(const std::string& path, int64_t keep_until_step, bool fresh,
+                                     std::optional<RolloutScore>& best) {
+  std::vector<std::string> kept;
+  best.reset();
+  if (!fresh && fs::exists(path)) {
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (in.eof()) break;  // no newline after it: torn by a kill
+      const char* text = line.c_str();
+      char* end = nullptr;
+      const long long step = std::strtoll(text, &end, 10);
+      if (end == text || *end != ',' || step < 1 || step > keep_until_step) continue;
+      // rmse_all is the fourth column.
+      const char* field = end;
+      for (int k = 0; k < 2 && field; ++k) field = std::strchr(field + 1, ',');
+      if (!field) continue;
+      const double rmse = std::strtod(field + 1, &end);
+      if (end == field + 1 || *end != ',') continue;
+      kept.push_back(line);
+      if (!best || rmse < best->rmse) best = RolloutScore{step, rmse};
+    }
+  }
+  {
+    AtomicOutput out(path);
+    std::ofstream f(out.temp_path());
+    f << kValidRolloutHeader << '\n';
     for (const auto& l : kept) f << l << '\n';
     f.close();
     out.commit();
@@ -163,6 +211,9 @@ class TrainSession {
   // step up to a checkpoint is in the log whenever a session is killed.
   void log_row(int64_t at, double wall_s, double loss, const Validation* v, double lr);
   Validation validate();
+  // Rolls the checkpoint just written out over the first valid trajectories, logs its score and
+  // keeps it as the best checkpoint when it beats every earlier one; returns the progress text.
+  std::string score_by_rollout(const FitStep& s);
   // One training batch: deterministic in (seed, step), noise included; this rank's slots.
   TrainBatch training_batch(int64_t index);
   // Normaliser statistics are settled before the optimiser moves (batches -1, -2, ... are
@@ -198,6 +249,9 @@ class TrainSession {
   std::ofstream log_;
   std::vector<SampleRef> valid_refs_;  // fixed validation samples: the same every time, no noise
   Validation last_valid_;
+  std::ofstream rollout_log_;                 // RUN/valid_rollout.csv, with valid_rollout_every
+  std::optional<RolloutScore> best_rollout_;  // the best checkpoint's score
+  std::string rollout_text_;                  // the last score, for the progress line
   double batch_weight_ = 0.0;  // predicted nodes of the last batch: the weight of its loss
   // Pushforward: the model's own rollout (no gradient, inference mode) feeds the samples of steps
   // from features.pushforward_from on (steps count from 1 as in the log; `index` from 0; never
@@ -299,11 +353,14 @@ void TrainSession::check_resume(const Json& run_json) {
     j->erase("steps");
     j->erase("time_budget_s");
     j->erase("graph_cache_mb");
+    j->erase("valid_rollout_every");
+    j->erase("valid_rollout_trajectories");
   }
   if (a != b || before_run.levels != resolved_.levels)
     throw InputError(run_config_path(run_) +
                      ": the run was trained with another configuration; "
-                     "only steps, time_budget_s and graph_cache_mb may change on --resume");
+                     "only steps, time_budget_s, graph_cache_mb and the valid_rollout keys may "
+                     "change on --resume");
   const int before = before_run.world_size;
   if (before != world_)
     std::cerr << "bsms train: warning: " << one_line(run_, 300) << " was trained with " << before
@@ -336,6 +393,19 @@ void TrainSession::build_model() {
   }
   last_valid_ = {resumed_.valid_loss, resumed_.valid_zero_prediction};
   if (writer_) log_ = open_log(run_log_path(run_), step_, !request_.resume);
+  const std::string best = run_best_checkpoint_path(run_);
+  if (writer_ && config_.valid_rollout_every > 0) {
+    rollout_log_ = open_valid_rollout_log(run_valid_rollout_log_path(run_), step_, !request_.resume,
+                                          best_rollout_);
+    // A best checkpoint no row of the kept log scored (a fresh run over an old folder) is not
+    // this run's.
+    std::error_code ec;
+    if (!best_rollout_) fs::remove(best, ec);
+  } else if (writer_ && fs::exists(best)) {
+    std::cerr << "bsms train: warning: " << one_line(best, 300)
+              << " is from an earlier session with valid_rollout_every; bsms rollout takes it "
+                 "unless given --checkpoint latest\n";
+  }
   for (int i = 0; i < config_.valid_samples; ++i)
     valid_refs_.push_back(draw_sample(*valid_data_, config_.seed ^ 0x5bd1e995ull, -1, i));
   rollout_step_ = [this](const Batch& b) {
@@ -492,6 +562,8 @@ FitHooks TrainSession::fit_hooks() {
       log_row(s.step, s.wall_s, s.loss, &last_valid_, s.lr);
       save_checkpoint(checkpoint_, *simulator_, *optimizer_,
                       {s.step, s.wall_s, s.loss, last_valid_.loss, last_valid_.zero_prediction});
+      if (config_.valid_rollout_every > 0 && (s.step % config_.valid_rollout_every == 0 || s.last))
+        rollout_text_ = score_by_rollout(s);
     } else {
       log_row(s.step, s.wall_s, s.loss, nullptr, s.lr);
     }
@@ -499,9 +571,56 @@ FitHooks TrainSession::fit_hooks() {
     if (std::isfinite(last_valid_.loss))
       extra << ", valid " << std::setprecision(3) << last_valid_.loss << " (zero "
             << last_valid_.zero_prediction << ")";
-    return extra.str();
+    return extra.str() + rollout_text_;
   };
   return hooks;
+}
+
+std::string TrainSession::score_by_rollout(const FitStep& s) {
+  RolloutRequest request;
+  request.run = run_;
+  request.split = has_valid_ ? "valid" : "train";
+  request.out = (fs::path(run_) / "valid_rollout").string();
+  request.max_trajectories = config_.valid_rollout_trajectories;
+  request.threads = threads_;
+  request.quiet = true;
+  request.checkpoint = "latest";
+  const RolloutMetrics m = rollout(request);
+  // A rollout that diverged on any trajectory is the worst score, whatever its finite part.
+  double rmse = std::numeric_limits<double>::infinity();
+  if (m.rmse_all && m.diverged.empty()) {
+    const double pos = m.rmse_all->at("world_pos");
+    rmse = std::isfinite(pos) ? pos : m.rmse_all->total;
+  }
+  const double reference = m.rmse_all_constant_velocity.value_or(std::nan(""));
+  const double ratio = reference > 0 ? rmse / reference : std::nan("");
+  const bool best = std::isfinite(rmse) && (!best_rollout_ || rmse < best_rollout_->rmse);
+  if (best) {
+    AtomicOutput out(run_best_checkpoint_path(run_));
+    std::error_code ec;
+    fs::copy_file(checkpoint_, out.temp_path(), fs::copy_options::overwrite_existing, ec);
+    if (ec) throw IoError(out.final_path() + ": cannot write (" + ec.message() + ")");
+    out.commit();
+    best_rollout_ = RolloutScore{s.step, rmse};
+  }
+  auto field = [](double v) {
+    std::ostringstream text;
+    if (std::isfinite(v)) text << std::setprecision(6) << v;
+    return text.str();
+  };
+  rollout_log_ << s.step << ',' << field(s.wall_s) << ',' << m.num_trajectories << ','
+               << (std::isinf(rmse) ? "inf" : field(rmse)) << ',' << field(reference) << ','
+               << field(ratio) << ',' << (best ? 1 : 0) << '\n';
+  rollout_log_.flush();
+  if (!rollout_log_) throw IoError(run_valid_rollout_log_path(run_) + ": cannot write");
+  std::ostringstream text;
+  text << std::setprecision(3) << ", rollout ";
+  if (std::isfinite(ratio))
+    text << ratio << "x CV";
+  else
+    text << rmse;
+  if (best_rollout_) text << " (best @ " << best_rollout_->step << ")";
+  return text.str();
 }
 
 TrainResult TrainSession::run() {
@@ -559,6 +678,10 @@ void TrainSession::write_stats(const FitResult& fitted, double last_loss,
   stats.graphs_made = graphs.builds;
   stats.graphs_evicted = graphs.evictions;
   stats.graph_cache_peak_mb = static_cast<double>(graphs.peak_bytes) / (1 << 20);
+  if (best_rollout_) {
+    stats.best_step = best_rollout_->step;
+    stats.best_valid_rollout_rmse = best_rollout_->rmse;
+  }
   if (comm_ && session_steps > 0) {
     stats.allreduce_ms_per_step = (comm_->collective_ms - collective_ms_before) / session_steps;
     stats.allreduce_calls_per_step =
