@@ -184,13 +184,13 @@ std::unique_ptr<RolloutDomain> eulerian_rollout(const RolloutRequest& request,
                      "Eulerian (velocity)");
   const int threads = configure_threads(set_num_threads(request.threads));
   EulerianSpec spec = eulerian_spec_from_json(folder.features_resolved, folder.config_path);
-  const std::string checkpoint = run_model_checkpoint(folder.dir, request.checkpoint);
+  const ModelCheckpoint checkpoint = run_model_checkpoint(folder.dir, request.checkpoint);
   int64_t step = 0;
-  auto simulator = load_model(folder, spec, checkpoint, step);
+  auto simulator = load_model(folder, spec, checkpoint.path, step);
   auto domain =
       std::make_unique<EulerianRollout>(request, folder, std::move(spec), std::move(simulator));
   domain->threads = threads;
-  domain->checkpoint = checkpoint == run_checkpoint_path(folder.dir) ? "latest" : "best";
+  domain->checkpoint = checkpoint.name;
   domain->checkpoint_step = step;
   return domain;
 }

@@ -18,9 +18,9 @@ RolloutModel open_rollout_model(const RunFolder& folder, const Dataset& data,
   m.adapter = std::make_unique<LagrangianAdapter>(m.spec);
   m.simulator = std::make_shared<LearnedSimulator>(m.adapter->model_shape(), folder.config.model,
                                                    folder.levels);
-  const std::string path = run_model_checkpoint(folder.dir, checkpoint);
-  m.checkpoint = path == run_checkpoint_path(folder.dir) ? "latest" : "best";
-  m.checkpoint_step = load_checkpoint(path, *m.simulator, nullptr).step;
+  const ModelCheckpoint chosen = run_model_checkpoint(folder.dir, checkpoint);
+  m.checkpoint = chosen.name;
+  m.checkpoint_step = load_checkpoint(chosen.path, *m.simulator, nullptr).step;
   m.simulator->eval();
   const std::vector<std::string> cache_dirs = multilevel_cache_dirs(data_dir, folder.dir);
   std::error_code ec;

@@ -24,18 +24,16 @@ std::string run_best_checkpoint_path(const std::string& run) {
 std::string run_valid_rollout_log_path(const std::string& run) {
   return (fs::path(run) / "valid_rollout.csv").string();
 }
-std::string run_model_checkpoint(const std::string& run, const std::string& which) {
+ModelCheckpoint run_model_checkpoint(const std::string& run, const std::string& which) {
   const std::string best = run_best_checkpoint_path(run);
-  if (which == "latest") return run_checkpoint_path(run);
-  if (which == "best") {
-    if (!fs::exists(best))
-      throw InputError(best +
-                       ": no best checkpoint (the run was trained without valid_rollout_every); "
-                       "use the latest one");
-    return best;
-  }
-  if (!which.empty()) throw InputError("checkpoint " + which + ": expected \"best\" or \"latest\"");
-  return fs::exists(best) ? best : run_checkpoint_path(run);
+  if (which == "best" && !fs::exists(best))
+    throw InputError(best +
+                     ": no best checkpoint (the run was trained without valid_rollout_every); "
+                     "use the latest one");
+  if (!which.empty() && which != "best" && which != "latest")
+    throw InputError("checkpoint " + which + ": expected \"best\" or \"latest\"");
+  if (which == "best" || (which.empty() && fs::exists(best))) return {best, "best"};
+  return {run_checkpoint_path(run), "latest"};
 }
 std::string multilevel_cache_dir(const std::string& dir) {
   return (fs::path(dir) / "multilevel").string();

@@ -20,7 +20,11 @@ std::string run_best_checkpoint_path(const std::string& run);
 std::string run_valid_rollout_log_path(const std::string& run);
 // The checkpoint a rollout (or the Python module) loads from a run: `which` = "best" (an
 // InputError when the run has none), "latest", or "" (best when the run has one, else latest).
-std::string run_model_checkpoint(const std::string& run, const std::string& which);
+struct ModelCheckpoint {
+  std::string path;
+  std::string name;  // "best" or "latest"
+};
+ModelCheckpoint run_model_checkpoint(const std::string& run, const std::string& which);
 std::string run_log_path(const std::string& run);
 std::string run_stats_path(const std::string& run);
 std::string run_checkpoint_dir(const std::string& run);

@@ -43,6 +43,21 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Rewrites the CSV file `path` atomically as `header` and the `kept` rows, and returns it for
+// appending.
+std::ofstream rewrite_for_appending(const std::string& path, const char* header,
+                                    const std::vector<std::string>& kept) {
+  {
+    AtomicOutput out(path);
+    std::ofstream f(out.temp_path());
+    f << header << '\n';
+    for (const auto& l : kept) f << l << '\n';
+    f.close();
+    out.commit();
+  }
+  return std::ofstream(path, std::ios::app);
+}
+
 // Drops log rows after `step` (resume) and returns the file for appending. A session killed
 // mid-write may have left rows past its checkpoint and a torn last line (no newline): only whole,
 // newline-terminated rows up to the checkpoint's step are kept, so the log holds each step once.
@@ -61,15 +76,7 @@ std::ofstream open_log(const std::string& path, int64_t keep_until_step, bool fr
       last = row->step;
     }
   }
-  {
-    AtomicOutput out(path);
-    std::ofstream f(out.temp_path());
-    f << kTrainLogHeader << '\n';
-    for (const auto& l : kept) f << l << '\n';
-    f.close();
-    out.commit();
-  }
-  return std::ofstream(path, std::ios::app);
+  return rewrite_for_appending(path, kTrainLogHeader, kept);
 }
 
 // RUN/valid_rollout.csv: one row per checkpoint scored by a validation rollout.
@@ -106,15 +113,7 @@ std::ofstream open_valid_rollout_log(const std::string& path, int64_t keep_until
       if (!best || rmse < best->rmse) best = RolloutScore{step, rmse};
     }
   }
-  {
-    AtomicOutput out(path);
-    std::ofstream f(out.temp_path());
-    f << kValidRolloutHeader << '\n';
-    for (const auto& l : kept) f << l << '\n';
-    f.close();
-    out.commit();
-  }
-  return std::ofstream(path, std::ios::app);
+  return rewrite_for_appending(path, kValidRolloutHeader, kept);
 }
 
 // Removes the temporary files (NAME.tmp.PID.N, see AtomicOutput) that sessions killed while
