@@ -615,6 +615,17 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   EXPECT_EQ(lines, 41);
 }
 
+// Expects `run` to throw an InputError whose message names `needle`.
+template <typename F>
+void expect_input_error(F run, const std::string& needle) {
+  try {
+    run();
+    ADD_FAILURE() << "expected an InputError naming " << needle;
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
 // One row of RUN/valid_rollout.csv: step, rmse_all, best flag.
 struct ScoredCheckpoint {
   int64_t step = 0;
@@ -709,23 +720,13 @@ TEST_F(PipelineTest, CheckpointSelectionKeepsTheBestValidationRollout) {
   q.run = plain.out;
   q.checkpoint = "best";
   q.out = (dir_ / "run_select_none_rollout").string();
-  try {
-    rollout(q);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("best.h5"), std::string::npos) << e.what();
-  }
+  expect_input_error([&] { rollout(q); }, "best.h5");
   q.checkpoint.clear();
   EXPECT_EQ(rollout(q).checkpoint, "latest");
   // The scoring interval must fall on checkpoints.
   plain.overrides = {"valid_rollout_every=30"};
   plain.out = (dir_ / "run_select_bad").string();
-  try {
-    train(plain);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("valid_rollout_every"), std::string::npos) << e.what();
-  }
+  expect_input_error([&] { train(plain); }, "valid_rollout_every");
 }
 
 // A run older bsms left (RUN/checkpoints/latest.pt, a LibTorch archive, no latest.h5) is refused
@@ -1081,12 +1082,7 @@ TEST_F(PipelineTest, BadConfigsAndCheckpointsAreInputErrors) {
   r.config_path = config;
   r.out = (dir / "run").string();
   r.quiet = true;
-  try {
-    train(r);
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("model.lattent"), std::string::npos) << e.what();
-  }
+  expect_input_error([&] { train(r); }, "model.lattent");
   r.config_path = write_config(dir, dir_ / "data", "bsms", 5);
   r.overrides = {"data=" + (dir / "nothing").string()};
   EXPECT_THROW(train(r), InputError);
