@@ -9,12 +9,15 @@
 #include <fstream>
 
 #include "core/one_line.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
 
+// A file in this test process's own folder.
 std::string write_temp(const std::string& name, const std::string& text) {
-  const auto path = std::filesystem::temp_directory_path() / name;
+  static const std::filesystem::path dir = bsms::testing::unique_temp_dir("config");
+  const auto path = dir / name;
   std::ofstream(path) << text;
   return path.string();
 }
@@ -204,7 +207,7 @@ TEST(Config, MessagesDescribeValuesWithoutDumpingThem) {
 TEST(Config, OnlyRegularFilesAreRead) {
   EXPECT_NE(message_of([] { load_json_file("/dev/zero"); }).find("a character device"),
             std::string::npos);
-  const auto dir = std::filesystem::temp_directory_path();
+  const auto dir = bsms::testing::unique_temp_dir("config_fifo");
   EXPECT_NE(message_of([&] { load_json_file(dir.string()); }).find("a folder"), std::string::npos);
   const auto fifo = dir / "bsms_config_test.fifo";
   std::filesystem::remove(fifo);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -104,8 +105,7 @@ TEST(GeoScan, ArbitraryBytesEndQuickly) {
 class GeoFiles : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("bsms_geo_scan_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
+    dir_ = bsms::testing::unique_temp_dir("geo_scan");
     fs::create_directories(dir_ / "sub");
   }
   void TearDown() override { fs::remove_all(dir_); }

@@ -12,6 +12,7 @@
 #include "core/gmsh_result.hpp"
 #include "core/gmsh_session.hpp"
 #include "core/mesh.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -22,9 +23,7 @@ class GmshWorker : public ::testing::Test {
  protected:
   void SetUp() override {
     saved_ = gmsh_limits();
-    dir_ = fs::temp_directory_path() / ("bsms_gmsh_worker_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = bsms::testing::unique_temp_dir("gmsh_worker");
   }
   void TearDown() override {
     set_gmsh_limits(saved_);

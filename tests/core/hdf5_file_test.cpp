@@ -10,14 +10,17 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
 
 namespace fs = std::filesystem;
 
+// A file in this test process's own folder.
 std::string temp_path(const std::string& name) {
-  return (fs::temp_directory_path() / ("bsms_h5_" + name)).string();
+  static const fs::path dir = bsms::testing::unique_temp_dir("h5");
+  return (dir / name).string();
 }
 
 TEST(Hdf5File, DatasetsAttributesAndSlabsRoundTrip) {

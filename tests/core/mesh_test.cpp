@@ -16,6 +16,7 @@
 #include "core/gmsh_session.hpp"
 #include "core/graph.hpp"
 #include "msh_fixtures.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -23,8 +24,10 @@ namespace {
 namespace fs = std::filesystem;
 using test::kTwoTriangles;
 
+// A file in this test process's own folder.
 std::string temp_path(const std::string& name) {
-  return (fs::temp_directory_path() / ("bsms_mesh_" + name)).string();
+  static const fs::path dir = bsms::testing::unique_temp_dir("mesh");
+  return (dir / name).string();
 }
 
 std::string write_text(const std::string& name, const std::string& text) {

@@ -5,7 +5,6 @@
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -19,6 +18,7 @@
 #include "core/gmsh_session.hpp"
 #include "core/mesh.hpp"
 #include "msh_fixtures.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -29,8 +29,7 @@ namespace fs = std::filesystem;
 // parallel processes, and several of them write the same file names (the plate in every format).
 const fs::path& temp_dir() {
   static const struct Dir {
-    fs::path path = fs::temp_directory_path() / ("bsms_msh_" + std::to_string(::getpid()));
-    Dir() { fs::create_directories(path); }
+    fs::path path = bsms::testing::unique_temp_dir("msh");
     ~Dir() {
       std::error_code ec;
       fs::remove_all(path, ec);

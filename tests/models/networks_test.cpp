@@ -14,6 +14,7 @@
 #include "models/checkpoint.hpp"
 #include "models/graph_ops.hpp"
 #include "tests/models/graph_fixtures.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -376,9 +377,7 @@ TEST(Networks, OverfitsTinyProblem) {
 class CheckpointTest : public ::testing::Test {
  protected:
   std::string path(const std::string& name) {
-    auto dir =
-        std::filesystem::temp_directory_path() / ("bsms_models_test_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
+    const auto dir = testing::unique_temp_dir("models_test");
     dirs_.push_back(dir);
     return (dir / name).string();
   }

@@ -2,7 +2,6 @@
 // rollout's stability metrics, and the wall inputs of the Lagrangian adapter.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -30,7 +29,7 @@ using testing::write_split;
 class HardCasesTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fresh_dir("hard_" + std::to_string(::getpid()));
+    dir_ = fresh_dir("hard");
     write_split(dir_ / "data", "train", 4, 12);  // horizon: 10 predicted steps
     write_split(dir_ / "data", "valid", 1, 12);
     write_split(dir_ / "data", "test", 2, 20);

@@ -4,7 +4,6 @@
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -13,6 +12,7 @@
 #include <string>
 
 #include "core/error.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -152,8 +152,7 @@ TEST(HeatSticks, ValidatesOptions) {
 }
 
 TEST(HeatSticks, ShortRunWritesMetricsAndPlot) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_heat_sticks_" + std::to_string(getpid()));
-  fs::remove_all(dir);
+  const fs::path dir = testing::unique_temp_dir("heat_sticks") / "run";
   HeatSticksOptions o;
   o.out = dir.string();
   o.steps = 15;

@@ -3,7 +3,6 @@
 #include <ATen/CPUGeneratorImpl.h>
 #include <gtest/gtest.h>
 #include <torch/torch.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -46,7 +45,7 @@ class PipelineTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     // ctest runs each test in its own process, possibly at the same time: one folder each.
-    dir_ = fresh_dir("suite_" + std::to_string(::getpid()));
+    dir_ = fresh_dir("suite");
     fs::create_directories(dir_ / "data");
     write_split(dir_ / "data", "train", 6, 12);
     write_split(dir_ / "data", "valid", 2, 12);
@@ -238,7 +237,7 @@ TEST_F(PipelineTest, BsmsLearnsTheFallingPlateAndRollsOut) {
 // correct pipeline learns the one-step acceleration almost exactly, on trajectories it did not
 // train on, and the log carries the zero-prediction reference beside the validation loss.
 TEST(KnownAnswer, BsmsLearnsSpringPlateAccelerations) {
-  const fs::path dir = fresh_dir("springs_" + std::to_string(::getpid()));
+  const fs::path dir = fresh_dir("springs");
   fs::create_directories(dir / "data");
   write_split(dir / "data", "train", 4, 24, 6, testing::spring_plate);
   write_split(dir / "data", "valid", 2, 24, 6, testing::spring_plate);
@@ -811,7 +810,7 @@ TEST_F(PipelineTest, OlderTorchCheckpointIsRefusedThenConvertedOnce) {
 // Without a valid split the run validates on training frames and says so (one warning line, and
 // valid_split in train_stats.json); a damaged valid split is an error, not a silent fallback.
 TEST(ValidSplit, MissingIsSaidDamagedIsAnError) {
-  const fs::path dir = fresh_dir("valid_split_" + std::to_string(::getpid()));
+  const fs::path dir = fresh_dir("valid_split");
   fs::create_directories(dir / "data");
   write_split(dir / "data", "train", 2, 8);
   TrainRequest r;
@@ -876,7 +875,7 @@ class Pushforward : public PipelineTest {
   }
   // A quiet 2-thread training request on the fixture's data, in a fresh folder named by `tag`.
   TrainRequest small_run(const std::string& tag, int64_t steps) const {
-    const fs::path dir = fresh_dir(tag + "_" + std::to_string(::getpid()));
+    const fs::path dir = fresh_dir(tag);
     TrainRequest r;
     r.config_path = write_config(dir, dir_ / "data", "bsms", steps);
     r.out = (dir / "run").string();
@@ -1074,7 +1073,7 @@ TEST_F(Pushforward, HistoryInputsAreTheVelocitiesBefore) {
 }
 
 TEST_F(PipelineTest, BadConfigsAndCheckpointsAreInputErrors) {
-  const fs::path dir = fresh_dir("bad_" + std::to_string(::getpid()));
+  const fs::path dir = fresh_dir("bad");
   const std::string config = (dir / "c.json").string();
   std::ofstream(config) << R"({"data": ")" << (dir_ / "data").string()
                         << R"(", "steps": 5, "model": {"type": "bsms", "lattent": 8}})";

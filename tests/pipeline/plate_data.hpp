@@ -11,16 +11,15 @@
 #include <vector>
 
 #include "data/dataset/dataset.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms::testing {
 
 namespace fs = std::filesystem;
 
+// A new empty folder of this test process (tests/temp_dir.hpp).
 inline fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_pipeline_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return unique_temp_dir("pipeline_" + name);
 }
 
 // A plate under gravity and linear drag: v_{t+1} = (1 - c) v_t + g, so the acceleration per frame²

@@ -15,16 +15,16 @@
 #include "data/generate/generator.hpp"
 #include "pipeline/experiments/predictability.hpp"
 #include "pipeline/runs/rollout_metrics.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 using namespace bsms;
 
+// A path that does not exist yet, in a new folder of this test process.
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_predictability_test_" + name);
-  fs::remove_all(dir);
-  return dir;
+  return bsms::testing::unique_temp_dir("predictability") / name;
 }
 
 TEST(Predictability, LogLogCrossingInterpolatesInLogs) {

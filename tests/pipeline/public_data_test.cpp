@@ -3,7 +3,6 @@
 // synthetic physics), read as distributed, with the shipped configs of the public benchmarks.
 #include <gtest/gtest.h>
 #include <torch/torch.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -16,6 +15,7 @@
 #include "pipeline/runs/train_stats.hpp"
 #include "pipeline/train/trainer.hpp"
 #include "pipeline/train/training_data.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -26,9 +26,7 @@ const fs::path kFixtures = fs::path(BSMS_SOURCE_DIR) / "tests" / "fixtures" / "m
 
 // A writable copy of a fixture folder (training caches multilevel graphs beside the data).
 fs::path copy_fixture(const std::string& name, const std::string& tag) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("bsms_public_" + tag + "_" + std::to_string(::getpid())) / name;
-  fs::remove_all(dir);
+  const fs::path dir = testing::unique_temp_dir("public_" + tag) / name;
   fs::create_directories(dir);
   for (const auto& entry : fs::directory_iterator(kFixtures / name))
     fs::copy_file(entry.path(), dir / entry.path().filename());

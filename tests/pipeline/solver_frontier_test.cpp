@@ -21,6 +21,7 @@
 #include "pipeline/runs/rollout_metrics.hpp"
 #include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_log.hpp"
+#include "tests/temp_dir.hpp"
 
 // A named namespace: the test target is a unity build, and other files' helpers (fresh_dir, ...)
 // share its translation units.
@@ -29,10 +30,9 @@ namespace solver_frontier_test {
 namespace fs = std::filesystem;
 using namespace bsms;
 
+// A path that does not exist yet, in a new folder of this test process.
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_solver_frontier_test_" + name);
-  fs::remove_all(dir);
-  return dir;
+  return bsms::testing::unique_temp_dir("solver_frontier") / name;
 }
 
 std::string read_text(const fs::path& file) {

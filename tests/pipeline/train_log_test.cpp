@@ -5,7 +5,6 @@
 #include "pipeline/runs/train_log.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -15,15 +14,17 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
 
 namespace fs = std::filesystem;
 
-// One folder per process (ctest runs tests in parallel), removed by each test at its end.
+// This test process's own folder, emptied by each test at its end.
 fs::path log_dir() {
-  return fs::temp_directory_path() / ("bsms_train_log_" + std::to_string(::getpid()));
+  static const fs::path dir = testing::unique_temp_dir("train_log");
+  return dir;
 }
 
 std::string temp_log(const std::string& name, const std::string& text) {

@@ -2,7 +2,6 @@
 
 #include <gmsh.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -12,6 +11,7 @@
 #include "core/gmsh_session.hpp"
 #include "core/hdf5_file.hpp"
 #include "test_graphs.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -20,11 +20,7 @@ namespace fs = std::filesystem;
 
 class TempDir {
  public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("bsms-preprocess-test-" + std::to_string(::getpid()) + "-" + std::to_string(next_++));
-    fs::create_directories(path_);
-  }
+  TempDir() { path_ = bsms::testing::unique_temp_dir("preprocess_test"); }
   ~TempDir() { fs::remove_all(path_); }
   std::string file(const std::string& name) const { return (path_ / name).string(); }
   std::vector<std::string> entries() const {
@@ -35,7 +31,6 @@ class TempDir {
 
  private:
   fs::path path_;
-  static inline int next_ = 0;
 };
 
 MultilevelGraph sample_graph(Seeding seeding = Seeding::kMinAve) {

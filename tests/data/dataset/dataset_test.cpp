@@ -16,6 +16,7 @@
 #include "core/hdf5_file.hpp"
 #include "data/dataset/xdmf.hpp"
 #include "data/mpm/scene_config.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -23,10 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path temp_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_dataset_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return bsms::testing::unique_temp_dir("dataset_" + name);
 }
 
 // A scene as `bsms generate` stores it: its family file, whose "scene" is the base scene.

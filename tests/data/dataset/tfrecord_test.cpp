@@ -14,6 +14,7 @@
 #include "core/hdf5_file.hpp"
 #include "data/dataset/dataset.hpp"
 #include "tests/data/dataset/tfrecord_writer.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms {
 namespace {
@@ -24,10 +25,7 @@ using test::frame_record;
 using test::raw;
 
 fs::path temp_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_tfrecord_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return bsms::testing::unique_temp_dir("tfrecord_" + name);
 }
 
 // ---- CRC ----

@@ -11,13 +11,13 @@
 
 #include <signal.h>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include "core/error.hpp"
 #include "data/dataset/dataset.hpp"
 #include "data/generate/family.hpp"
 #include "data/generate/generator.hpp"
 #include "data/generate/trajectory_solver.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace {
 
@@ -44,10 +44,9 @@ std::string input_error(const std::string& file, const std::vector<std::string>&
   return "";
 }
 
+// A path that does not exist yet, in a new folder of this test process.
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_generate_test_" + name);
-  fs::remove_all(dir);
-  return dir;
+  return bsms::testing::unique_temp_dir("generate") / name;
 }
 
 // Equal in every dataset and attribute except solver_wall_s (wall time differs between runs).

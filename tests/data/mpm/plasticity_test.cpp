@@ -2,8 +2,6 @@
 // and the plane-strain slope scene that exercises it.
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <cmath>
 #include <filesystem>
 
@@ -13,6 +11,7 @@
 #include "data/mpm/scene_builder.hpp"
 #include "data/mpm/simulation.hpp"
 #include "data/mpm/solver.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms::mpm {
 namespace {
@@ -256,8 +255,7 @@ TEST(Slope, CoarseSlopeStartsToFailUnderGravity) {
 
 TEST(Slope, FramesCarryPlasticStrain) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("bsms_slope_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const fs::path dir = bsms::testing::unique_temp_dir("slope") / "run";
   const Scene scene = load_scene(kSlope, {"bodies.0.spacing=0.4", "background.element_size=0.8",
                                           "solver.end_time=0.2", "output.frames=3"});
   const SimulationSummary s = simulate_scene(scene, dir.string(), false);

@@ -2,8 +2,6 @@
 // `simulate_scene` writes the frames file of docs/design.md and nothing on failure.
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -16,6 +14,7 @@
 #include "data/mpm/scene_builder.hpp"
 #include "data/mpm/scene_size.hpp"
 #include "data/mpm/simulation.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace bsms::mpm {
 namespace {
@@ -129,8 +128,7 @@ TEST(Scene, SizeEstimatesMatchTheBuiltShippedScenes) {
 
 // An input mesh with a zero-area cell is refused by the solver, naming the file and the cell.
 TEST(Scene, BackgroundMeshWithCollinearTriangleIsRefused) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_badmesh_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = bsms::testing::unique_temp_dir("badmesh");
   std::ofstream(dir / "bad.msh") << R"($MeshFormat
 2.2 0 8
 $EndMeshFormat
@@ -190,8 +188,7 @@ TEST(Scene, BadScenesNameFileAndKey) {
 }
 
 TEST(Simulation, WritesFramesFileAsSpecified) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_frames_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const fs::path dir = bsms::testing::unique_temp_dir("frames") / "run";
   const Scene scene = load_scene(kScenes + "rotating_square.json",
                                  {"background.element_size=0.05", "solver.dt=1e-4",
                                   "solver.end_time=0.01", "output.frames=5"});
@@ -244,8 +241,7 @@ TEST(Simulation, WritesFramesFileAsSpecified) {
 }
 
 TEST(Simulation, FailedRunLeavesNoFramesFile) {
-  const fs::path dir = fs::temp_directory_path() / ("bsms_fail_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
+  const fs::path dir = bsms::testing::unique_temp_dir("fail") / "run";
   const Scene scene =
       load_scene(kScenes + "rotating_square.json",
                  {"background.element_size=0.05", "solver.dt=0.005", "solver.end_time=0.2"});
