@@ -22,6 +22,7 @@ namespace {
 const char* const kModel = "/model";
 const char* const kOptimizer = "/optimizer";
 const char* const kState = "/optimizer/state";
+const char* const kEma = "/ema";
 const char* const kMoments[] = {"exp_avg", "exp_avg_sq", "max_exp_avg_sq"};
 
 // FNV-1a over 64-bit words (then the tail bytes): a digest of each tensor's bytes, stored next to
@@ -426,12 +427,29 @@ void read_slots(const Reader& r, const std::vector<bool>& amsgrad_of, int64_t to
         read_slot(r, index, std::string(kState) + "/" + m, amsgrad_of[static_cast<size_t>(index)]));
 }
 
+// The average of the parameters: its settings and one floating-point entry per parameter.
+void read_ema(const Reader& r, CheckpointContents& c) {
+  const std::vector<std::string> entries = r.members(kEma);
+  const int64_t count = r.int_attr(kEma, "count");
+  if (count != static_cast<int64_t>(entries.size()))
+    r.fail("ema", "has " + std::to_string(entries.size()) + " entries, its count says " +
+                      std::to_string(count) + " (an entry lost or added)");
+  if (entries.empty()) r.fail("ema", "has no entry");
+  c.ema_decay = r.double_attr(kEma, "decay");
+  if (!(c.ema_decay > 0 && c.ema_decay < 1))
+    r.fail("ema", "has decay " + std::to_string(c.ema_decay) + " (expected in (0, 1))");
+  c.ema_updates = r.int_attr(kEma, "updates");
+  if (c.ema_updates < 0)
+    r.fail("ema", "has updates " + std::to_string(c.ema_updates) + " (expected >= 0)");
+  for (const auto& m : entries) c.ema.push_back({m, r.tensor(std::string(kEma) + "/" + m)});
+}
+
 CheckpointContents read_contents(const Reader& r) {
   CheckpointContents c;
   const std::string kind = read_kind(r);
   c.training = kind == "training";
   for (const auto& m : r.members("/"))
-    if (!(m == "model" || (c.training && m == "optimizer")))
+    if (!(m == "model" || (c.training && (m == "optimizer" || m == "ema"))))
       r.fail(m, "is not part of a " + kind + " checkpoint (unexpected entry)");
   read_model(r, c);
   if (!c.training) return c;
@@ -439,7 +457,24 @@ CheckpointContents read_contents(const Reader& r) {
   int64_t total = 0;
   const std::vector<bool> amsgrad_of = read_groups(r, c, total);
   read_slots(r, amsgrad_of, total, c);
+  if (r.file().exists(kEma)) read_ema(r, c);
   return c;
+}
+
+// Each averaged entry names a floating-point model entry and has its shape and dtype.
+void check_ema(const Reader& r, const CheckpointContents& c) {
+  std::map<std::string, const torch::Tensor*> model;
+  for (const auto& t : c.model) model.emplace(t.name, &t.value);
+  for (const auto& e : c.ema) {
+    const auto it = model.find(e.name);
+    if (it == model.end()) r.fail("ema/" + clip(e.name), "names no entry of the model");
+    const torch::Tensor& p = *it->second;
+    if (!p.is_floating_point() || e.value.sizes() != p.sizes() ||
+        e.value.scalar_type() != p.scalar_type())
+      r.fail("ema/" + clip(e.name),
+             "has shape " + shape_text(e.value.sizes(), e.value.scalar_type()) +
+                 ", its model entry " + shape_text(p.sizes(), p.scalar_type()));
+  }
 }
 
 // Each optimizer state belongs to a distinct model entry and has its shape and dtype. (Apart
@@ -485,9 +520,11 @@ std::string read_checkpoint_bytes(const std::string& path) {
 
 CheckpointContents checkpoint_contents(const torch::nn::Module& module,
                                        const torch::optim::Adam* optimizer,
-                                       const TrainingState* state) {
+                                       const TrainingState* state, const ParameterEma* ema) {
   if ((optimizer == nullptr) != (state == nullptr))
     throw std::invalid_argument("checkpoint_contents: optimizer and state go together");
+  if (ema && !optimizer)
+    throw std::invalid_argument("checkpoint_contents: an average is part of a training checkpoint");
   CheckpointContents c;
   for (const auto& [name, value] : module_entries(module)) c.model.push_back({name, value});
   if (!optimizer) return c;
@@ -515,6 +552,11 @@ CheckpointContents checkpoint_contents(const torch::nn::Module& module,
       }
       ++index;
     }
+  }
+  if (ema) {
+    for (const auto& [name, value] : ema->averages()) c.ema.push_back({name, value});
+    c.ema_decay = ema->decay();
+    c.ema_updates = ema->updates();
   }
   return c;
 }
@@ -564,6 +606,17 @@ void write_checkpoint_contents(const std::string& path, const CheckpointContents
         w.tensor(entry + "/exp_avg_sq", a.exp_avg_sq);
         if (a.max_exp_avg_sq.defined()) w.tensor(entry + "/max_exp_avg_sq", a.max_exp_avg_sq);
       }
+      if (!c.ema.empty()) {
+        f.create_group(kEma);
+        f.set_attr(kEma, "count", static_cast<int64_t>(c.ema.size()));
+        f.set_attr(kEma, "decay", c.ema_decay);
+        f.set_attr(kEma, "updates", c.ema_updates);
+        for (const auto& t : c.ema) {
+          if (t.name.empty() || t.name.find('/') != std::string::npos)
+            throw IoError(path + ": averaged entry '" + clip(t.name) + "' cannot be an HDF5 name");
+          w.tensor(std::string(kEma) + "/" + t.name, t.value);
+        }
+      }
     }
     f.close();
   }
@@ -571,20 +624,22 @@ void write_checkpoint_contents(const std::string& path, const CheckpointContents
 }
 
 void save_checkpoint_file(const std::string& path, const torch::nn::Module& module,
-                          const torch::optim::Adam* optimizer, const TrainingState* state) {
-  write_checkpoint_contents(path, checkpoint_contents(module, optimizer, state));
+                          const torch::optim::Adam* optimizer, const TrainingState* state,
+                          const ParameterEma* ema) {
+  write_checkpoint_contents(path, checkpoint_contents(module, optimizer, state, ema));
 }
 
 CheckpointContents read_checkpoint_contents(const std::string& name, const std::string& bytes) {
   const Reader r(name, bytes);
   CheckpointContents c = read_contents(r);
   check_slots(r, c);
+  check_ema(r, c);
   return c;
 }
 
 TrainingState load_checkpoint_image(const std::string& name, const std::string& bytes,
                                     torch::nn::Module& module, torch::optim::Adam* optimizer,
-                                    bool require_training) {
+                                    bool require_training, ParameterEma* ema) {
   const Reader r(name, bytes);
   const CheckpointContents c = read_contents(r);
   if ((optimizer || require_training) && !c.training)
@@ -614,6 +669,26 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
     if (!expected.count(t.name))
       r.fail("model/" + clip(t.name), std::string("is unexpected") + other);
   check_slots(r, c);
+  check_ema(r, c);
+
+  // The average covers exactly the module's floating-point parameters. To predict, it is the
+  // model: it replaces the training weights.
+  std::vector<std::pair<torch::Tensor, const torch::Tensor*>> averaged;
+  if (!c.ema.empty()) {
+    std::map<std::string, const torch::Tensor*> by_name;
+    for (const auto& e : c.ema) by_name.emplace(e.name, &e.value);
+    size_t covered = 0;
+    for (const auto& p : module.named_parameters(/*recurse=*/true)) {
+      if (!p.value().is_floating_point()) continue;
+      const auto it = by_name.find(p.key());
+      if (it == by_name.end())
+        r.fail("has no entry 'ema/" + p.key() + "' (the average is partial)");
+      averaged.emplace_back(p.value(), it->second);
+      ++covered;
+    }
+    if (covered != c.ema.size()) r.fail("ema", "averages an entry that is not a parameter");
+  }
+  const bool predict_with_average = !optimizer && !averaged.empty();
 
   // The optimizer: the same groups, each parameter's state (if any) stored for that parameter.
   struct Slot {
@@ -654,6 +729,23 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
   {
     torch::NoGradGuard no_grad;
     for (auto& [target, value] : copies) target.copy_(*value);
+    if (predict_with_average)
+      for (auto& [target, value] : averaged) target.copy_(*value);
+  }
+  if (ema && optimizer) {
+    if (averaged.empty()) {
+      ema->restart();
+    } else {
+      std::map<std::string, torch::Tensor> values;
+      for (const auto& e : c.ema) values.emplace(e.name, e.value);
+      std::vector<torch::Tensor> ordered;
+      for (const auto& [entry, value] : ema->averages()) {
+        const auto it = values.find(entry);
+        if (it == values.end()) r.fail("has no entry 'ema/" + entry + "'");
+        ordered.push_back(it->second);
+      }
+      ema->restore(c.ema_updates, ordered);
+    }
   }
   if (optimizer) {
     for (size_t g = 0; g < optimizer->param_groups().size(); ++g) {

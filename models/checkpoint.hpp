@@ -1,9 +1,10 @@
 // Checkpoints as HDF5 files that bsms reads itself (docs/formats.md "Checkpoints"): a module's
-// parameters and buffers, and for training checkpoints the Adam state, the step, the wall time
-// and the losses. Reading validates the whole file before anything is copied: every entry
-// present and no other, dtype and shape equal to the module's, storage sizes consistent, values
-// finite, optimizer state matching the parameters. Every failure is an InputError naming the
-// file and the entry. (LibTorch's archives are not read here: loading one runs code from it.)
+// parameters and buffers, and for training checkpoints the Adam state, the step, the wall time,
+// the losses and, when training keeps one, the moving average of the parameters (ParameterEma).
+// Reading validates the whole file before anything is copied: every entry present and no other,
+// dtype and shape equal to the module's, storage sizes consistent, values finite, optimizer state
+// matching the parameters. Every failure is an InputError naming the file and the entry.
+// (LibTorch's archives are not read here: loading one runs code from it.)
 #pragma once
 
 #include <torch/nn/module.h>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "models/checkpoint_format.hpp"
+#include "models/parameter_ema.hpp"
 
 namespace bsms {
 
@@ -29,19 +31,25 @@ struct TrainingState {
   double valid_zero_prediction = std::nan("");
 };
 
-// Writes `module` (and, for a training checkpoint, `optimizer` and `state`; both or neither) to
-// `path` atomically (a temporary file renamed into place). IoError naming the file on failure.
+// Writes `module` (and, for a training checkpoint, `optimizer` and `state`; both or neither; and
+// `ema`, the average of the module's parameters, when training keeps one) to `path` atomically (a
+// temporary file renamed into place). IoError naming the file on failure.
 void save_checkpoint_file(const std::string& path, const torch::nn::Module& module,
-                          const torch::optim::Adam* optimizer, const TrainingState* state);
+                          const torch::optim::Adam* optimizer, const TrainingState* state,
+                          const ParameterEma* ema = nullptr);
 
 // Reads a checkpoint file's bytes (`name` names it in errors) into `module` and, when given,
 // `optimizer` (which must then be a training checkpoint whose optimizer covers the module's
 // parameters as `optimizer` does). With `require_training` (implied by an optimizer) a module
 // checkpoint is refused. Nothing is changed unless the whole file checks. Returns the training
 // state (a module checkpoint: step 0, losses NaN).
+// A checkpoint with an average of the parameters: without an optimizer (to predict with) the
+// module gets the average, which is the checkpoint's model; with one (to train on) the module gets
+// the training weights and `ema`, when given, the average (or, where the file has none, a fresh
+// start from the loaded weights).
 TrainingState load_checkpoint_image(const std::string& name, const std::string& bytes,
                                     torch::nn::Module& module, torch::optim::Adam* optimizer,
-                                    bool require_training = false);
+                                    bool require_training = false, ParameterEma* ema = nullptr);
 
 // The whole file read into memory (a regular file; InputError naming it when missing or
 // unreadable).
@@ -75,6 +83,11 @@ struct CheckpointContents {
   std::vector<CheckpointTensor> model;  // read: sorted by name
   std::vector<AdamGroup> groups;
   std::vector<AdamSlot> slots;  // by index
+  // A training checkpoint's average of the parameters (empty: none): by parameter name (read:
+  // sorted), its decay and the updates it has had.
+  std::vector<CheckpointTensor> ema;
+  double ema_decay = 0.0;
+  int64_t ema_updates = 0;
 };
 CheckpointContents read_checkpoint_contents(const std::string& name, const std::string& bytes);
 
@@ -82,7 +95,8 @@ CheckpointContents read_checkpoint_contents(const std::string& name, const std::
 // any contents, unchecked, so that tests and fuzzing can write damaged checkpoints.
 CheckpointContents checkpoint_contents(const torch::nn::Module& module,
                                        const torch::optim::Adam* optimizer,
-                                       const TrainingState* state);
+                                       const TrainingState* state,
+                                       const ParameterEma* ema = nullptr);
 void write_checkpoint_contents(const std::string& path, const CheckpointContents& contents);
 
 }  // namespace bsms

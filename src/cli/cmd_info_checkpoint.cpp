@@ -80,6 +80,13 @@ std::string checkpoint_summary(const std::string& path, const std::string& inden
   if (c.training)
     out << indent << "  optimizer: " << c.groups.size() << " group(s), " << optimizer.tensors
         << " tensors, " << optimizer.values << " values, digest " << hex(optimizer.hash) << '\n';
+  if (!c.ema.empty()) {
+    Digest ema;
+    for (const auto& t : c.ema) ema.add(t.name, t.value);
+    out << indent << "  parameter average (predictions use it): decay " << c.ema_decay << ", "
+        << c.ema_updates << " updates, " << ema.tensors << " tensors, " << ema.values
+        << " values, digest " << hex(ema.hash) << '\n';
+  }
   return out.str();
 }
 

@@ -614,6 +614,80 @@ TEST_F(PipelineTest, ResumeContinuesExactly) {
   EXPECT_EQ(lines, 41);
 }
 
+// A run that keeps a moving average of its parameters: a resumed run continues the average
+// exactly, and rollouts predict with the average, not with the training weights.
+TEST_F(PipelineTest, ParameterAverageResumesExactlyAndIsWhatRolloutsUse) {
+  TrainRequest straight;
+  straight.config_path = write_config(dir_, dir_ / "data", "mgn", 40);
+  straight.overrides = {"optimizer.ema_decay=0.9"};
+  straight.out = (dir_ / "run_ema").string();
+  straight.threads = 1;
+  straight.quiet = true;
+  train(straight);
+  TrainRequest split = straight;
+  split.out = (dir_ / "run_ema_split").string();
+  split.until = 20;
+  train(split);
+  split.until = 0;
+  split.resume = true;
+  split.overrides = {"optimizer.ema_decay=0.5"};
+  EXPECT_THROW(train(split), InputError);  // another average on resume
+  split.overrides = straight.overrides;
+  EXPECT_EQ(train(split).steps, 40);
+
+  const std::string file = run_checkpoint_path(straight.out);
+  const CheckpointContents a = read_checkpoint_contents(file, read_checkpoint_bytes(file));
+  const std::string split_file = run_checkpoint_path(split.out);
+  const CheckpointContents b =
+      read_checkpoint_contents(split_file, read_checkpoint_bytes(split_file));
+  EXPECT_EQ(a.ema_decay, 0.9);
+  EXPECT_EQ(a.ema_updates, 40);
+  EXPECT_EQ(b.ema_updates, 40);
+  ASSERT_EQ(a.ema.size(), b.ema.size());
+  ASSERT_FALSE(a.ema.empty());
+  double moved = 0.0;  // how far the average is from the weights
+  for (size_t i = 0; i < a.ema.size(); ++i) {
+    EXPECT_EQ(a.ema[i].name, b.ema[i].name);
+    EXPECT_TRUE(torch::equal(a.ema[i].value, b.ema[i].value)) << a.ema[i].name;
+    for (const auto& t : a.model)
+      if (t.name == a.ema[i].name)
+        moved = std::max(moved, (t.value - a.ema[i].value).abs().max().item<double>());
+  }
+  EXPECT_GT(moved, 1e-4);
+
+  // The same run with the average written over the weights (and no average): same rollout.
+  const fs::path swapped = dir_ / "run_ema_swapped";
+  fs::remove_all(swapped);
+  fs::copy(straight.out, swapped, fs::copy_options::recursive);
+  CheckpointContents c = a;
+  for (const auto& e : c.ema)
+    for (auto& t : c.model)
+      if (t.name == e.name) t.value = e.value;
+  c.ema.clear();
+  write_checkpoint_contents(run_checkpoint_path(swapped.string()), c);
+  // ... and with the average dropped: the training weights, another rollout.
+  const fs::path weights = dir_ / "run_ema_weights";
+  fs::remove_all(weights);
+  fs::copy(straight.out, weights, fs::copy_options::recursive);
+  c = a;
+  c.ema.clear();
+  write_checkpoint_contents(run_checkpoint_path(weights.string()), c);
+  auto rmse_of = [&](const std::string& run) {
+    RolloutRequest q;
+    q.run = run;
+    q.split = "valid";
+    q.threads = 1;
+    q.quiet = true;
+    q.out = run + "_rollout";
+    const RolloutMetrics m = rollout(q);
+    EXPECT_TRUE(m.rmse_all.has_value());
+    return m.rmse_all ? m.rmse_all->at("world_pos") : 0.0;
+  };
+  const double averaged = rmse_of(straight.out);
+  EXPECT_EQ(averaged, rmse_of(swapped.string()));
+  EXPECT_NE(averaged, rmse_of(weights.string()));
+}
+
 // Expects `run` to throw an InputError whose message names `needle`.
 template <typename F>
 void expect_input_error(F run, const std::string& needle) {

@@ -71,6 +71,12 @@ TEST(TrainConfig, BadValuesNameTheKey) {
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "features": {"strain": "on"}})")
                 .find("features.strain"),
             std::string::npos);
+  for (const char* decay : {"1", "-0.1", "1.5"})
+    EXPECT_NE(error_of(std::string(R"({"data": "d", "steps": 5, "optimizer": {"ema_decay": )") +
+                       decay + "}}")
+                  .find("optimizer.ema_decay"),
+              std::string::npos)
+        << decay;
   EXPECT_NE(error_of(R"({"data": "d", "steps": 5, "optimizer": {"warmup_steps": -1}})")
                 .find("optimizer.warmup_steps"),
             std::string::npos);

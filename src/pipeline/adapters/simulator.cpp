@@ -106,24 +106,26 @@ torch::Tensor LearnedSimulator::predict(const Batch& batch) {
 }
 
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Adam& optimizer, const CheckpointInfo& info) {
-  save_checkpoint_file(path, simulator, &optimizer, &info);
+                     torch::optim::Adam& optimizer, const CheckpointInfo& info,
+                     const ParameterEma* ema) {
+  save_checkpoint_file(path, simulator, &optimizer, &info, ema);
 }
 
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                               torch::optim::Adam* optimizer) {
+                               torch::optim::Adam* optimizer, ParameterEma* ema) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {
     const std::string legacy = legacy_checkpoint_path(path);
     if (!legacy.empty() && std::filesystem::exists(legacy, ec))
       throw InputError(legacy_checkpoint_message(legacy));
   }
-  return load_checkpoint_bytes(read_checkpoint_bytes(path), path, simulator, optimizer);
+  return load_checkpoint_bytes(read_checkpoint_bytes(path), path, simulator, optimizer, ema);
 }
 
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
-                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer) {
-  return load_checkpoint_image(name, bytes, simulator, optimizer, /*require_training=*/true);
+                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer,
+                                     ParameterEma* ema) {
+  return load_checkpoint_image(name, bytes, simulator, optimizer, /*require_training=*/true, ema);
 }
 
 }  // namespace bsms

@@ -58,11 +58,13 @@ class LearnedSimulator : public torch::nn::Module {
 // line saying how to convert it (`bsms convert-checkpoint`).
 using CheckpointInfo = TrainingState;
 void save_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                     torch::optim::Adam& optimizer, const CheckpointInfo& info);
+                     torch::optim::Adam& optimizer, const CheckpointInfo& info,
+                     const ParameterEma* ema = nullptr);
 CheckpointInfo load_checkpoint(const std::string& path, LearnedSimulator& simulator,
-                               torch::optim::Adam* optimizer);
+                               torch::optim::Adam* optimizer, ParameterEma* ema = nullptr);
 // The same from a checkpoint file's bytes (data-parallel ranks get rank 0's); `name` for errors.
 CheckpointInfo load_checkpoint_bytes(const std::string& bytes, const std::string& name,
-                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer);
+                                     LearnedSimulator& simulator, torch::optim::Adam* optimizer,
+                                     ParameterEma* ema = nullptr);
 
 }  // namespace bsms

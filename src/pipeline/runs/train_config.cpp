@@ -199,6 +199,9 @@ void parse_optimizer(const Json& j, const JsonContext& ctx, OptimizerConfig& opt
   optimizer.batch_size = o.opt<int>("batch_size", optimizer.batch_size);
   require(optimizer.batch_size >= 1 && optimizer.batch_size <= 1024, o.context("batch_size"),
           "in 1..1024");
+  optimizer.ema_decay = o.opt<double>("ema_decay", optimizer.ema_decay);
+  require(optimizer.ema_decay >= 0 && optimizer.ema_decay < 1, o.context("ema_decay"),
+          "in [0, 1) (0: no average)");
   o.finish();
 }
 
@@ -257,7 +260,8 @@ Json to_json(const TrainConfig& c) {
           {{"lr", c.optimizer.lr},
            {"lr_final", c.optimizer.lr_final},
            {"warmup_steps", c.optimizer.warmup_steps},
-           {"batch_size", c.optimizer.batch_size}}}};
+           {"batch_size", c.optimizer.batch_size},
+           {"ema_decay", c.optimizer.ema_decay}}}};
   j["model"]["precision"] = c.model.precision;
   j["model"]["edge_normalizer"] = c.model.edge_normalizer;
   Json& f = j["features"];

@@ -118,6 +118,9 @@ struct OptimizerConfig {
   double lr_final = 1e-6;    // exponential decay from lr to lr_final over the run's progress
   int64_t warmup_steps = 0;  // linear warm-up from lr / 100 over this many steps
   int batch_size = 2;        // graphs per step (block-diagonal merge)
+  // > 0: keep an exponential moving average of the parameters with this decay
+  // (models/parameter_ema.hpp); checkpoints carry it and predictions use it. 0: none.
+  double ema_decay = 0.0;
 };
 
 struct TrainConfig {

@@ -27,6 +27,7 @@
 #include "core/runtime.hpp"
 #include "models/fused_adam.hpp"
 #include "models/graph_ops.hpp"
+#include "models/parameter_ema.hpp"
 #include "pipeline/adapters/eulerian.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
 #include "pipeline/adapters/simulator.hpp"
@@ -42,6 +43,13 @@ namespace bsms {
 namespace fs = std::filesystem;
 
 namespace {
+
+// A number as the config has it (up to six significant digits).
+std::string one_number(double v) {
+  std::ostringstream text;
+  text << v;
+  return text.str();
+}
 
 // Rewrites the CSV file `path` atomically as `header` and the `kept` rows, and returns it for
 // appending.
@@ -242,6 +250,7 @@ class TrainSession {
   std::unique_ptr<GraphStore> store_;
   std::shared_ptr<LearnedSimulator> simulator_;
   std::unique_ptr<FusedAdam> optimizer_;
+  std::unique_ptr<ParameterEma> ema_;  // optimizer.ema_decay > 0: what checkpoints predict with
   int64_t step_ = 0;
   double wall_before_ = 0.0;
   CheckpointInfo resumed_;  // the losses at the checkpoint: reported if no step is trained
@@ -383,10 +392,12 @@ void TrainSession::build_model() {
       std::make_shared<LearnedSimulator>(resolved_.shape(), config_.model, resolved_.levels);
   optimizer_ = std::make_unique<FusedAdam>(simulator_->parameters(),
                                            torch::optim::AdamOptions(config_.optimizer.lr));
+  if (config_.optimizer.ema_decay > 0)
+    ema_ = std::make_unique<ParameterEma>(*simulator_, config_.optimizer.ema_decay);
   if (request_.resume) {
-    resumed_ =
-        comm_ ? load_checkpoint_bytes(checkpoint_bytes_, checkpoint_, *simulator_, optimizer_.get())
-              : load_checkpoint(checkpoint_, *simulator_, optimizer_.get());
+    resumed_ = comm_ ? load_checkpoint_bytes(checkpoint_bytes_, checkpoint_, *simulator_,
+                                             optimizer_.get(), ema_.get())
+                     : load_checkpoint(checkpoint_, *simulator_, optimizer_.get(), ema_.get());
     step_ = resumed_.step;
     wall_before_ = resumed_.wall_s;
   }
@@ -490,6 +501,7 @@ void TrainSession::settle_normalizers() {
     comm_->all_reduce_sum(simulator_->normalizer_sums(), 0,
                           "all-reduce of the normalizer statistics");
   }
+  if (ema_) ema_->restart();  // from the parameters every rank starts with
 }
 
 void TrainSession::print_start() const {
@@ -514,6 +526,7 @@ void TrainSession::print_start() const {
             << (comm_ ? " x " + std::to_string(world_) + " ranks (" +
                             std::to_string(world_ * per_rank_) + " samples per step)"
                       : std::string())
+            << (ema_ ? ", parameter average decay " + one_number(ema_->decay()) : std::string())
             << " -> " << run_ << "\n";
 }
 
@@ -554,13 +567,15 @@ FitHooks TrainSession::fit_hooks() {
   // Validation and an atomic checkpoint every valid_every steps and at the last step; one log
   // row per step (validation columns empty between checks). Rank 0 only.
   hooks.after_step = [this](const FitStep& s) {
+    if (ema_) ema_->update();
     if (!writer_) return std::string();
     const bool checkpoint_now = s.step % config_.valid_every == 0 || s.last;
     if (checkpoint_now) {
       last_valid_ = validate();
       log_row(s.step, s.wall_s, s.loss, &last_valid_, s.lr);
       save_checkpoint(checkpoint_, *simulator_, *optimizer_,
-                      {s.step, s.wall_s, s.loss, last_valid_.loss, last_valid_.zero_prediction});
+                      {s.step, s.wall_s, s.loss, last_valid_.loss, last_valid_.zero_prediction},
+                      ema_.get());
       if (config_.valid_rollout_every > 0 && (s.step % config_.valid_rollout_every == 0 || s.last))
         rollout_text_ = score_by_rollout(s);
     } else {
