@@ -502,6 +502,38 @@ void check_slots(const Reader& r, const CheckpointContents& c) {
   }
 }
 
+// The module's floating-point parameters, each with its averaged value, when the checkpoint has
+// an average (else none): it must cover exactly those parameters.
+std::vector<std::pair<torch::Tensor, const torch::Tensor*>> averaged_parameters(
+    const Reader& r, const CheckpointContents& c, torch::nn::Module& module) {
+  std::vector<std::pair<torch::Tensor, const torch::Tensor*>> averaged;
+  if (c.ema.empty()) return averaged;
+  std::map<std::string, const torch::Tensor*> by_name;
+  for (const auto& e : c.ema) by_name.emplace(e.name, &e.value);
+  for (const auto& p : module.named_parameters(/*recurse=*/true)) {
+    if (!p.value().is_floating_point()) continue;
+    const auto it = by_name.find(p.key());
+    if (it == by_name.end()) r.fail("has no entry 'ema/" + p.key() + "' (the average is partial)");
+    averaged.emplace_back(p.value(), it->second);
+  }
+  if (averaged.size() != c.ema.size()) r.fail("ema", "averages an entry that is not a parameter");
+  return averaged;
+}
+
+// The checkpoint's average (checked by averaged_parameters) in the order of `ema`.
+std::vector<torch::Tensor> ordered_averages(const Reader& r, const CheckpointContents& c,
+                                            const ParameterEma& ema) {
+  std::map<std::string, torch::Tensor> values;
+  for (const auto& e : c.ema) values.emplace(e.name, e.value);
+  std::vector<torch::Tensor> ordered;
+  for (const auto& [entry, value] : ema.averages()) {
+    const auto it = values.find(entry);
+    if (it == values.end()) r.fail("has no entry 'ema/" + entry + "'");
+    ordered.push_back(it->second);
+  }
+  return ordered;
+}
+
 }  // namespace
 
 std::string read_checkpoint_bytes(const std::string& path) {
@@ -671,24 +703,13 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
   check_slots(r, c);
   check_ema(r, c);
 
-  // The average covers exactly the module's floating-point parameters. To predict, it is the
-  // model: it replaces the training weights.
-  std::vector<std::pair<torch::Tensor, const torch::Tensor*>> averaged;
-  if (!c.ema.empty()) {
-    std::map<std::string, const torch::Tensor*> by_name;
-    for (const auto& e : c.ema) by_name.emplace(e.name, &e.value);
-    size_t covered = 0;
-    for (const auto& p : module.named_parameters(/*recurse=*/true)) {
-      if (!p.value().is_floating_point()) continue;
-      const auto it = by_name.find(p.key());
-      if (it == by_name.end())
-        r.fail("has no entry 'ema/" + p.key() + "' (the average is partial)");
-      averaged.emplace_back(p.value(), it->second);
-      ++covered;
-    }
-    if (covered != c.ema.size()) r.fail("ema", "averages an entry that is not a parameter");
-  }
+  // To predict, the average is the model: it replaces the training weights.
+  const std::vector<std::pair<torch::Tensor, const torch::Tensor*>> averaged =
+      averaged_parameters(r, c, module);
   const bool predict_with_average = !optimizer && !averaged.empty();
+  const std::vector<torch::Tensor> ema_values = ema && optimizer && !averaged.empty()
+                                                    ? ordered_averages(r, c, *ema)
+                                                    : std::vector<torch::Tensor>{};
 
   // The optimizer: the same groups, each parameter's state (if any) stored for that parameter.
   struct Slot {
@@ -732,21 +753,6 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
     if (predict_with_average)
       for (auto& [target, value] : averaged) target.copy_(*value);
   }
-  if (ema && optimizer) {
-    if (averaged.empty()) {
-      ema->restart();
-    } else {
-      std::map<std::string, torch::Tensor> values;
-      for (const auto& e : c.ema) values.emplace(e.name, e.value);
-      std::vector<torch::Tensor> ordered;
-      for (const auto& [entry, value] : ema->averages()) {
-        const auto it = values.find(entry);
-        if (it == values.end()) r.fail("has no entry 'ema/" + entry + "'");
-        ordered.push_back(it->second);
-      }
-      ema->restore(c.ema_updates, ordered);
-    }
-  }
   if (optimizer) {
     for (size_t g = 0; g < optimizer->param_groups().size(); ++g) {
       auto& o = static_cast<torch::optim::AdamOptions&>(optimizer->param_groups()[g].options());
@@ -756,6 +762,8 @@ TrainingState load_checkpoint_image(const std::string& name, const std::string& 
     }
     optimizer->state().clear();
     for (auto& slot : slots) optimizer->state()[slot.key] = std::move(slot.state);
+    if (ema && ema_values.empty()) ema->restart();  // a checkpoint without an average
+    if (ema && !ema_values.empty()) ema->restore(c.ema_updates, ema_values);
   }
   return c.training ? c.state : TrainingState{};
 }
