@@ -309,16 +309,23 @@ std::string read_kind(const Reader& r) {
   return kind;
 }
 
+// The members of `group`, checked against its `count` attribute: the entry count, stored apart
+// from the group's index, names a lost or added entry even without a model to compare with
+// (bsms info).
+std::vector<std::string> counted_members(const Reader& r, const std::string& group) {
+  const std::vector<std::string> entries = r.members(group);
+  const int64_t count = r.int_attr(group, "count");
+  if (count != static_cast<int64_t>(entries.size()))
+    r.fail(Reader::entry_of(group), "has " + std::to_string(entries.size()) +
+                                        " entries, its count says " + std::to_string(count) +
+                                        " (an entry lost or added)");
+  return entries;
+}
+
 // The model's entries, in the group's order.
 void read_model(const Reader& r, CheckpointContents& c) {
-  // The entry count, stored apart from the group's index, names a lost or added entry even
-  // without a model to compare with (bsms info).
-  const std::vector<std::string> entries = r.members(kModel);
-  const int64_t count = r.int_attr(kModel, "count");
-  if (count != static_cast<int64_t>(entries.size()))
-    r.fail("model", "has " + std::to_string(entries.size()) + " entries, its count says " +
-                        std::to_string(count) + " (an entry lost or added)");
-  for (const auto& m : entries) c.model.push_back({m, r.tensor(std::string(kModel) + "/" + m)});
+  for (const auto& m : counted_members(r, kModel))
+    c.model.push_back({m, r.tensor(std::string(kModel) + "/" + m)});
 }
 
 void read_training_state(const Reader& r, TrainingState& s) {
@@ -410,12 +417,7 @@ AdamSlot read_slot(const Reader& r, int64_t index, const std::string& object, bo
 void read_slots(const Reader& r, const std::vector<bool>& amsgrad_of, int64_t total,
                 CheckpointContents& c) {
   std::vector<std::pair<int64_t, std::string>> indices;
-  const std::vector<std::string> states = r.members(kState);
-  const int64_t state_count = r.int_attr(kState, "count");
-  if (state_count != static_cast<int64_t>(states.size()))
-    r.fail("optimizer/state", "has " + std::to_string(states.size()) + " entries, its count says " +
-                                  std::to_string(state_count) + " (an entry lost or added)");
-  for (const auto& m : states) {
+  for (const auto& m : counted_members(r, kState)) {
     if (!is_index(m) || std::stoll(m) >= total)
       r.fail("optimizer/state/" + clip(m),
              "is not a parameter index (the optimizer has " + std::to_string(total) + ")");
@@ -429,11 +431,7 @@ void read_slots(const Reader& r, const std::vector<bool>& amsgrad_of, int64_t to
 
 // The average of the parameters: its settings and one floating-point entry per parameter.
 void read_ema(const Reader& r, CheckpointContents& c) {
-  const std::vector<std::string> entries = r.members(kEma);
-  const int64_t count = r.int_attr(kEma, "count");
-  if (count != static_cast<int64_t>(entries.size()))
-    r.fail("ema", "has " + std::to_string(entries.size()) + " entries, its count says " +
-                      std::to_string(count) + " (an entry lost or added)");
+  const std::vector<std::string> entries = counted_members(r, kEma);
   if (entries.empty()) r.fail("ema", "has no entry");
   c.ema_decay = r.double_attr(kEma, "decay");
   if (!(c.ema_decay > 0 && c.ema_decay < 1))

@@ -31,6 +31,7 @@
 #include "pipeline/adapters/eulerian.hpp"
 #include "pipeline/adapters/lagrangian.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/report/number_format.hpp"
 #include "pipeline/rollout/rollout.hpp"
 #include "pipeline/runs/run_files.hpp"
 #include "pipeline/runs/train_log.hpp"
@@ -43,13 +44,6 @@ namespace bsms {
 namespace fs = std::filesystem;
 
 namespace {
-
-// A number as the config has it (up to six significant digits).
-std::string one_number(double v) {
-  std::ostringstream text;
-  text << v;
-  return text.str();
-}
 
 // Rewrites the CSV file `path` atomically as `header` and the `kept` rows, and returns it for
 // appending.
@@ -526,7 +520,8 @@ void TrainSession::print_start() const {
             << (comm_ ? " x " + std::to_string(world_) + " ranks (" +
                             std::to_string(world_ * per_rank_) + " samples per step)"
                       : std::string())
-            << (ema_ ? ", parameter average decay " + one_number(ema_->decay()) : std::string())
+            << (ema_ ? ", parameter average decay " + format_number(ema_->decay(), 6)
+                     : std::string())
             << " -> " << run_ << "\n";
 }
 
