@@ -244,7 +244,7 @@ class TrainSession {
   std::unique_ptr<GraphStore> store_;
   std::shared_ptr<LearnedSimulator> simulator_;
   std::unique_ptr<FusedAdam> optimizer_;
-  std::unique_ptr<ParameterEma> ema_;  // optimizer.ema_decay > 0: what checkpoints predict with
+  std::unique_ptr<ParameterEma> ema_;  // ema_decay > 0, rank 0: what checkpoints predict with
   int64_t step_ = 0;
   double wall_before_ = 0.0;
   CheckpointInfo resumed_;  // the losses at the checkpoint: reported if no step is trained
@@ -386,7 +386,9 @@ void TrainSession::build_model() {
       std::make_shared<LearnedSimulator>(resolved_.shape(), config_.model, resolved_.levels);
   optimizer_ = std::make_unique<FusedAdam>(simulator_->parameters(),
                                            torch::optim::AdamOptions(config_.optimizer.lr));
-  if (config_.optimizer.ema_decay > 0)
+  // Rank 0 alone writes checkpoints, so it alone keeps the average (the ranks' parameters are
+  // equal after every step).
+  if (config_.optimizer.ema_decay > 0 && writer_)
     ema_ = std::make_unique<ParameterEma>(*simulator_, config_.optimizer.ema_decay);
   if (request_.resume) {
     resumed_ = comm_ ? load_checkpoint_bytes(checkpoint_bytes_, checkpoint_, *simulator_,
