@@ -73,4 +73,13 @@ void ParameterEma::restart() {
   updates_ = 0;
 }
 
+void ParameterEma::swap_with_module() {
+  torch::NoGradGuard no_grad;
+  for (size_t i = 0; i < params_.size(); ++i) {
+    const torch::Tensor weights = params_[i].detach().clone();
+    params_[i].detach().copy_(averages_[i].second);
+    averages_[i].second.copy_(weights);
+  }
+}
+
 }  // namespace bsms

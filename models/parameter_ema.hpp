@@ -42,12 +42,32 @@ class ParameterEma {
   void restore(int64_t updates, const std::vector<torch::Tensor>& values);
   // Starts again from the module's parameters as they are now, with no update.
   void restart();
+  // Exchanges the module's parameters with the average (twice: back as before, bit for bit), so
+  // that the module predicts with the average meanwhile; see AverageInModule.
+  void swap_with_module();
 
  private:
   double decay_;
   int64_t updates_ = 0;
   std::vector<torch::Tensor> params_;  // the module's, shared
   std::vector<std::pair<std::string, torch::Tensor>> averages_;
+};
+
+// Scope in which a module predicts with its parameters' average (validation during training);
+// the training weights are back when it ends, also when it ends by an exception. No-op for null.
+class AverageInModule {
+ public:
+  explicit AverageInModule(ParameterEma* ema) : ema_(ema) {
+    if (ema_) ema_->swap_with_module();
+  }
+  ~AverageInModule() {
+    if (ema_) ema_->swap_with_module();
+  }
+  AverageInModule(const AverageInModule&) = delete;
+  AverageInModule& operator=(const AverageInModule&) = delete;
+
+ private:
+  ParameterEma* ema_;
 };
 
 }  // namespace bsms

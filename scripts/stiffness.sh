@@ -14,7 +14,7 @@
 # holds, and one solver for every E keeps the points comparable), STIFF_COST_E (moduli at which only
 # the solver's cost is measured, on STIFF_COST_TRAJECTORIES (6) trajectories each: the solver's
 # side of the crossover on a finer grid of E than training allows; default none)). Resumable: a
-# finished point is kept.
+# finished point is kept, and so is a point's dataset generated with the same draw.
 set -euo pipefail
 
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -50,12 +50,21 @@ for e in $moduli; do
   run=$point/bsms-E$e
   runs+=("$run")
   if [[ -f $run/rollout_walls+cells+contact/metrics.json ]]; then continue; fi  # finished earlier
-  echo "== E = $e Pa: generate, preprocess, train ${seconds} s, roll out"
-  rm -rf "$point"
-  mkdir -p "$point"
-  "$bsms" generate "$root/configs/families/$family.json" --out "$point/data" \
-    --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads" \
-    --set "sample.material.youngs_modulus=$e" "${set_args[@]}" 2>&1 | tee "$point/generate.log"
+  # A dataset already generated with the same draw is kept (generation is the long part at high E).
+  key="$family trajectories=$trajectories seed=$seed E=$e sets=$sets"
+  if [[ -f $point/data/train.h5 && -f $point/data/valid.h5 && -f $point/data/test.h5 &&
+        -f $point/generate.log && $(cat "$point/generate.key" 2>/dev/null) == "$key" ]]; then
+    echo "== E = $e Pa: dataset kept; preprocess, train ${seconds} s, roll out"
+    rm -rf "$run"
+  else
+    echo "== E = $e Pa: generate, preprocess, train ${seconds} s, roll out"
+    rm -rf "$point"
+    mkdir -p "$point"
+    "$bsms" generate "$root/configs/families/$family.json" --out "$point/data" \
+      --trajectories "$trajectories" --split 80:10:10 --seed "$seed" --threads "$threads" \
+      --set "sample.material.youngs_modulus=$e" "${set_args[@]}" 2>&1 | tee "$point/generate.log"
+    echo "$key" >"$point/generate.key"
+  fi
   "$bsms" preprocess --data "$point/data" --seeding minave --levels "$levels" --threads "$threads"
   "$bsms" train "$config" --out "$run" --threads "$threads" --set "data=$point/data" \
     --set "time_budget_s=$seconds" --set steps=1000000 --set valid_every=500

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -97,6 +98,47 @@ TEST(ParameterEma, CoversTheParametersOnlyAndRestarts) {
   EXPECT_EQ(max_difference(averages_of(ema), parameter_values(m)), 0.0);
   EXPECT_THROW(ParameterEma(m, 1.0), std::invalid_argument);
   EXPECT_THROW(ParameterEma(m, 0.0), std::invalid_argument);
+}
+
+TEST(ParameterEma, ModulePredictsWithTheAverageInsideTheScopeOnly) {
+  torch::manual_seed(5);
+  Small m;
+  ParameterEma ema(m, 0.9);
+  for (int n = 0; n < 20; ++n) {
+    auto v = parameter_values(m);
+    for (auto& t : v) t.add_(0.1 * torch::randn_like(t));
+    set_parameters(m, v);
+    ema.update();
+  }
+  const auto weights = parameter_values(m);
+  const auto average = [&] {
+    std::vector<torch::Tensor> out;
+    for (const auto& t : averages_of(ema)) out.push_back(t.clone());
+    return out;
+  }();
+  ASSERT_GT(max_difference(weights, average), 0.01);
+  const torch::Tensor x = torch::randn({5, 3});
+  const torch::Tensor trained = m.forward(x).detach();
+  torch::Tensor averaged;
+  {
+    const AverageInModule scope(&ema);
+    EXPECT_EQ(max_difference(parameter_values(m), average), 0.0);
+    EXPECT_EQ(max_difference(averages_of(ema), weights), 0.0);
+    averaged = m.forward(x).detach();
+  }
+  // Back bit for bit, also after a scope left by an exception; the average itself unchanged.
+  EXPECT_EQ(max_difference(parameter_values(m), weights), 0.0);
+  EXPECT_EQ(max_difference(averages_of(ema), average), 0.0);
+  EXPECT_FALSE(torch::allclose(trained, averaged));
+  try {
+    const AverageInModule scope(&ema);
+    throw std::runtime_error("inside");
+  } catch (const std::runtime_error&) {
+  }
+  EXPECT_EQ(max_difference(parameter_values(m), weights), 0.0);
+  EXPECT_EQ(max_difference(averages_of(ema), average), 0.0);
+  const AverageInModule none(nullptr);  // no average: nothing to do
+  EXPECT_EQ(max_difference(parameter_values(m), weights), 0.0);
 }
 
 class CheckpointEma : public ::testing::Test {

@@ -920,6 +920,28 @@ std::vector<double> logged_losses(const std::string& run) {
   return losses;
 }
 
+// With a parameter average, validation measures what the checkpoint predicts with (the average)
+// while training is the same step for step: the losses of a run with and without the average are
+// bit-identical, their validation losses are not.
+TEST_F(PipelineTest, ValidationMeasuresTheAverageTrainingIsUnchanged) {
+  TrainRequest plain;
+  plain.config_path = write_config(dir_, dir_ / "data", "mgn", 30);
+  plain.overrides = {"valid_every=10"};
+  plain.out = (dir_ / "run_validate_plain").string();
+  plain.threads = 1;
+  plain.quiet = true;
+  TrainRequest averaged = plain;
+  averaged.overrides.push_back("optimizer.ema_decay=0.9");
+  averaged.out = (dir_ / "run_validate_average").string();
+  const TrainResult a = train(plain);
+  const TrainResult b = train(averaged);
+  const std::vector<double> losses = logged_losses(plain.out);
+  ASSERT_EQ(losses.size(), 30u);
+  EXPECT_EQ(losses, logged_losses(averaged.out));
+  EXPECT_TRUE(std::isfinite(b.final_valid_loss));
+  EXPECT_NE(a.final_valid_loss, b.final_valid_loss);
+}
+
 // Pushforward (features.pushforward): the sample at frame t is the model's own rollout from the
 // truth at t-1-u and t-u, and its target the truth corrected for noise plus drift.
 class Pushforward : public PipelineTest {

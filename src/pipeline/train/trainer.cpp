@@ -453,6 +453,8 @@ void TrainSession::log_row(int64_t at, double wall_s, double loss, const Validat
 
 Validation TrainSession::validate() {
   torch::NoGradGuard no_grad;
+  // The loss of what the checkpoint predicts with: the average, when training keeps one.
+  const AverageInModule average(ema_.get());
   simulator_->eval();
   double total = 0, zero = 0;
   for (const auto& ref : valid_refs_) {

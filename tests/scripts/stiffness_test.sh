@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# scripts/stiffness.sh in CI size (disks2d, one modulus, 10 trajectories, seconds of training):
+# the table has its row; a rerun keeps the finished point; a point whose rollouts are gone keeps
+# its dataset (not regenerated) and is trained and rolled out again; another seed regenerates; a
+# modulus that is not a number fails with exit 2 and one line.
+# Usage: stiffness_test.sh BUILD_DIR SOURCE_DIR WORK
+set -u
+build_dir=$(cd "$1" && pwd) src=$(cd "$2" && pwd) work=$3
+script=$src/scripts/stiffness.sh
+fail() {
+  echo "FAIL: $*"
+  exit 1
+}
+export OMP_WAIT_POLICY=PASSIVE STIFF_FAMILY=disks2d STIFF_E=1400 STIFF_TRAJECTORIES=10 \
+  STIFF_TRAIN_SECONDS=2 STIFF_THREADS=2 STIFF_SEED=3
+unset STIFF_SET STIFF_COST_E
+rm -rf "$work"
+mkdir -p "$work"
+out=$work/out
+point=$out/E1400
+"$script" "$build_dir" "$out" >"$work/first.log" 2>&1 || fail "first run: $(tail -3 "$work/first.log")"
+grep -q "^| 1400 |" "$out/stiffness.md" || fail "no row for E = 1400 in $out/stiffness.md"
+grep -q "generate: " "$work/first.log" || fail "the first run generated nothing"
+data_id=$(stat -c %i:%Y "$point/data/train.h5")
+
+"$script" "$build_dir" "$out" >"$work/kept.log" 2>&1 || fail "rerun: $(tail -3 "$work/kept.log")"
+grep -q "== E = 1400" "$work/kept.log" && fail "a finished point was redone: $(head -3 "$work/kept.log")"
+
+rm -rf "$point/bsms-E1400/rollout_walls+cells+contact"
+"$script" "$build_dir" "$out" >"$work/again.log" 2>&1 || fail "rerun: $(tail -3 "$work/again.log")"
+grep -q "== E = 1400 Pa: dataset kept" "$work/again.log" || fail "dataset not kept: $(head -3 "$work/again.log")"
+[[ $(stat -c %i:%Y "$point/data/train.h5") == "$data_id" ]] || fail "the kept dataset was rewritten"
+[[ -f $point/bsms-E1400/rollout_walls+cells+contact/metrics.json ]] || fail "no projected rollout after the rerun"
+
+rm -rf "$point/bsms-E1400/rollout_walls+cells+contact"
+STIFF_SEED=4 "$script" "$build_dir" "$out" >"$work/seed.log" 2>&1 || fail "seed 4: $(tail -3 "$work/seed.log")"
+grep -q "== E = 1400 Pa: generate" "$work/seed.log" || fail "another seed did not regenerate"
+
+STIFF_E="1e4 soft" "$script" "$build_dir" "$work/bad" >/dev/null 2>"$work/bad.err"
+code=$?
+[[ $code == 2 && $(wc -l <"$work/bad.err") == 1 ]] || fail "bad modulus: exit $code: $(cat "$work/bad.err")"
+grep -q "'soft' is not a positive modulus" "$work/bad.err" || fail "bad modulus: $(cat "$work/bad.err")"
+[[ ! -e $work/bad ]] || fail "a refused run wrote $work/bad"
+echo "stiffness script: table, kept point, kept dataset, new seed and bad modulus all as expected"
