@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <random>
 
 #include "core/error.hpp"
@@ -180,7 +181,7 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   std::vector<std::string> notes;
   const auto disks = default_solver_settings(load_json_file(families + "disks2d.json"),
                                              families + "disks2d.json", notes);
-  ASSERT_EQ(disks.size(), 5u);
+  ASSERT_EQ(disks.size(), 6u);
   EXPECT_EQ(disks[0].name, "background_x1.5");
   EXPECT_EQ(disks[0].assignments, std::vector<std::string>{"scene.background.element_size=0.06"});
   EXPECT_EQ(disks[1].assignments, std::vector<std::string>{"scene.background.element_size=0.08"});
@@ -188,12 +189,15 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   EXPECT_EQ(disks[3].assignments, std::vector<std::string>{"scene.solver.cfl=0.9"});
   EXPECT_EQ(disks[4].name, "spacing_x1.5");
   EXPECT_EQ(disks[4].assignments, std::vector<std::string>{"sample.spacing=0.0375"});
+  EXPECT_EQ(disks[5].name, kAnotherMesh);  // the same resolution, another mesh
+  EXPECT_EQ(disks[5].assignments,
+            std::vector<std::string>{"scene.background.element_size=0.04056"});
   EXPECT_TRUE(notes.empty());
   // Every key ending in _spacing; a CFL number capped at 1 once, the second multiple dropped.
   Json press = load_json_file(families + "press2d.json");
   press["scene"]["solver"]["cfl"] = 0.6;
   const auto p = default_solver_settings(press, families + "press2d.json", notes);
-  ASSERT_EQ(p.size(), 4u);
+  ASSERT_EQ(p.size(), 5u);
   EXPECT_EQ(p[2].name, "cfl_x2");
   EXPECT_EQ(p[2].assignments, std::vector<std::string>{"scene.solver.cfl=1"});
   EXPECT_EQ(p[3].assignments.size(), 2u);
@@ -206,9 +210,13 @@ TEST(SolverFrontier, SettingsParseAndDefaultsScaleTheFamilysKnobs) {
   Json bodies = load_json_file(families + "bodies3d.json");
   bodies["sample"]["nodes"] = Json::array({675, 2700});
   const auto b = default_solver_settings(bodies, families + "bodies3d.json", notes);
-  ASSERT_EQ(b.back().name, "spacing_x1.5");
-  EXPECT_EQ(b.back().assignments,
+  ASSERT_GE(b.size(), 2u);
+  const SolverSetting& b_spacing = b[b.size() - 2];
+  ASSERT_EQ(b_spacing.name, "spacing_x1.5");
+  EXPECT_EQ(b_spacing.assignments,
             (std::vector<std::string>{"sample.spacing=0.0525", "sample.nodes=[200,800]"}));
+  EXPECT_EQ(b.back().assignments,
+            std::vector<std::string>{"scene.background.element_size=0.07098"});
 }
 
 // RMSE-all of constant velocity over predicted frames 2 .. F-1, computed here from the file.
@@ -252,7 +260,10 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
   o.out = fresh_dir("out").string();
   o.threads = 2;
   o.quiet = true;
-  o.settings = {"coarse=scene.background.element_size=0.09", "sparse=sample.spacing=0.06"};
+  // another_mesh at the default factor: the same resolution on a mesh gmsh lays out otherwise.
+  o.settings = {"coarse=scene.background.element_size=0.09", "sparse=sample.spacing=0.06",
+                std::string(kAnotherMesh) +
+                    "=scene.background.element_size=" + std::to_string(0.06 * kAnotherMeshFactor)};
   const SolverFrontier r = solver_frontier_experiment(o);
   EXPECT_EQ(r.trajectories, 3);
   EXPECT_EQ(r.frames, 10);
@@ -265,12 +276,12 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
   EXPECT_DOUBLE_EQ(truth.speedup_vs_ground_truth, 1.0);
   ASSERT_TRUE(r.stored_ms_per_frame);  // bsms generate's timing of the same solves
   EXPECT_GT(*r.stored_ms_per_frame, 0);
-  ASSERT_EQ(r.settings.size(), 2u);
-  const FrontierSetting &coarse = r.settings[0], &sparse = r.settings[1];
+  ASSERT_EQ(r.settings.size(), 3u);
+  const FrontierSetting &coarse = r.settings[0], &sparse = r.settings[1], &remeshed = r.settings[2];
   EXPECT_EQ(coarse.assignments, std::vector<std::string>{"scene.background.element_size=0.09"});
   EXPECT_FALSE(coarse.interpolated);
   EXPECT_TRUE(sparse.interpolated);  // other particles: read at the stored nodes
-  for (const FrontierSetting* s : {&coarse, &sparse}) {
+  for (const FrontierSetting* s : {&coarse, &sparse, &remeshed}) {
     EXPECT_EQ(s->unstable, 0);
     EXPECT_TRUE(std::isfinite(s->rmse_all) && s->rmse_all > 1e-6) << s->name;
     EXPECT_TRUE(std::isfinite(s->ms_per_frame) && s->ms_per_frame > 0) << s->name;
@@ -295,8 +306,12 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
   // The file reads back as written; the table is there.
   const SolverFrontier back = read_solver_frontier(o.out);
   EXPECT_EQ(to_json(back), to_json(r));
-  EXPECT_NE(read_text(fs::path(o.out) / "solver_frontier.md").find("| sparse (interpolated) |"),
-            std::string::npos);
+  const std::string md = read_text(fs::path(o.out) / "solver_frontier.md");
+  EXPECT_NE(md.find("| sparse (interpolated) |"), std::string::npos) << md;
+  // Another mesh of the same size changes the truth, and the file says what that measures.
+  EXPECT_EQ(another_mesh_setting(r), &r.settings[2]);
+  EXPECT_NE(md.find(another_mesh_paragraph(r)), std::string::npos) << md;
+  EXPECT_NE(md.find("is that part's size"), std::string::npos) << md;
   // A strict reader: an unknown key, or a setting short of trajectories, names the file.
   Json damaged = to_json(r);
   damaged["settings"][0]["colour"] = "red";
@@ -417,7 +432,7 @@ TEST(SolverFrontier, ReportDrawsTheFrontierAndSaysWhetherASettingBeatsEachRun) {
   f.rmse_all_constant_velocity = 0.2;
   f.ground_truth = fake_setting("ground_truth", 8.0, 0.0, 0);
   f.settings = {fake_setting("cheap", 4.0, 0.005, 0), fake_setting("shaky", 2.0, 0.001, 1),
-                fake_setting("useless", 3.0, 0.5, 0)};
+                fake_setting("useless", 3.0, 0.5, 0), fake_setting(kAnotherMesh, 9.0, 0.01, 0)};
   fs::create_directories(dir / "frontier");
   write_json_atomic((dir / "frontier" / "metrics.json").string(), to_json(f));
 
@@ -440,13 +455,32 @@ TEST(SolverFrontier, ReportDrawsTheFrontierAndSaysWhetherASettingBeatsEachRun) {
   EXPECT_NE(text.find("- fast (1.00 ms/step, RMSE-all 2.00e-02 m): no cheaper solver setting is "
                       "both as fast and as accurate. The cheapest more accurate one, cheap, costs "
                       "4.00× the model's time per frame at 0.25× its RMSE-all. Faster than that "
-                      "and more accurate, but unstable: shaky (lost 1 of 2 solves)."),
+                      "and more accurate, but unstable: shaky (lost 1 of 2 solves). Its "
+                      "RMSE-all is 2× another_mesh's."),
             std::string::npos)
       << text;
   EXPECT_NE(text.find("- slow (20.00 ms/step, RMSE-all 2.00e-02 m): beaten by solver setting "
-                      "ground_truth (8.00 ms/frame, RMSE-all 0.00e+00 m); also by cheap."),
+                      "ground_truth (8.00 ms/frame, RMSE-all 0.00e+00 m); also by cheap, "
+                      "another_mesh. Its RMSE-all is 2× another_mesh's."),
             std::string::npos)
       << text;
+  // What another mesh of the same size measures is said once, under the table.
+  EXPECT_NE(text.find("another_mesh's 0.05× constant velocity is that part's size"),
+            std::string::npos)
+      << text;
+  // An another_mesh that reproduces the data did not remesh, and is said not to measure anything.
+  SolverFrontier same = f;
+  same.settings.back().rmse_all = 0;
+  EXPECT_NE(another_mesh_paragraph(same).find("left the mesh as it was"), std::string::npos);
+  // Re-solves lost on the other mesh are counted; one with no stable solve says nothing.
+  same.settings.back().rmse_all = 0.01;
+  same.settings.back().unstable = 1;
+  EXPECT_NE(another_mesh_paragraph(same).find("1 of 2 re-solves inverted a particle"),
+            std::string::npos)
+      << another_mesh_paragraph(same);
+  same.settings.back().rmse_all = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(another_mesh_setting(same), nullptr);
+  EXPECT_EQ(another_mesh_paragraph(same), "");
   // The frontier is a second data block of the speed plot's data, unstable points marked.
   const std::string speed = read_text(dir / "out" / "plots" / "speed.dat");
   const size_t block = speed.find("\n\n\n");

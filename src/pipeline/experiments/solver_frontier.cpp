@@ -245,6 +245,8 @@ std::string markdown(const SolverFrontier& r) {
            << "): unstable: " << truncate_for_message(t.message, 200);
   for (const auto& note : r.notes) md << "\n- " << note;
   md << "\n";
+  const std::string floor = another_mesh_paragraph(r);
+  if (!floor.empty()) md << "\n" << floor;
   return md.str();
 }
 
@@ -370,7 +372,8 @@ std::vector<SolverSetting> default_solver_settings(const Json& family, const std
   const auto text = [](double v) { return format_number(v, 6); };
   // The family's base scene, typed (its defaults are the parser's).
   const mpm::Scene scene = mpm::parse_base_scene(family.at("scene"), {file, "scene"});
-  if (scene.background.element_size > 0) {
+  const bool sized = scene.background.element_size > 0;
+  if (sized) {
     for (const auto& [label, factor] : {std::pair{"1.5", 1.5}, std::pair{"2", 2.0}})
       out.push_back(
           {std::string("background_x") + label,
@@ -429,6 +432,10 @@ std::vector<SolverSetting> default_solver_settings(const Json& family, const std
     notes.push_back(
         "No default spacing setting: the family's sample section has no key spacing or "
         "*_spacing; give --setting NAME=sample.KEY=VALUE.");
+  if (sized)
+    out.push_back({kAnotherMesh,
+                   {"scene.background.element_size=" +
+                    text(scene.background.element_size * kAnotherMeshFactor)}});
   return out;
 }
 

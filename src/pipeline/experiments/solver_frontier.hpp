@@ -58,9 +58,17 @@ SolverSetting parse_solver_setting(const std::string& text);
 // `file`; its base scene read by the scene parser, InputError when malformed): the
 // background element size x1.5 and x2, the CFL number x2 and x3 (capped at 1, the scene parser's
 // bound; absent when the scene fixes its time step), every sample key named spacing or *_spacing
-// x1.5 together. A knob the family lacks is skipped with a line in `notes`.
+// x1.5 together; and kAnotherMesh. A knob the family lacks is skipped with a line in `notes`.
 std::vector<SolverSetting> default_solver_settings(const Json& family, const std::string& file,
                                                    std::vector<std::string>& notes);
+
+// The setting that solves at the same resolution on another background mesh (element size
+// x kAnotherMeshFactor: gmsh places other nodes). Not a cheaper setting but the data's floor for a
+// model: contact and wall forces act through the background nodes, so part of the truth depends on
+// the exact mesh, which a model that does not see the background cannot know. Its RMSE-all is
+// that part's size. A --setting of this name is treated the same.
+inline constexpr const char* kAnotherMesh = "another_mesh";
+inline constexpr double kAnotherMeshFactor = 1.014;
 
 // One setting's solve of one trajectory.
 struct FrontierTrajectory {
@@ -105,6 +113,12 @@ struct SolverFrontier {
   std::vector<FrontierSetting> settings;
   std::vector<std::string> notes;  // default knobs skipped or capped
 };
+
+// The kAnotherMesh setting when the frontier has one with a score (stable on some trajectory),
+// else null.
+const FrontierSetting* another_mesh_setting(const SolverFrontier& frontier);
+// One markdown paragraph on that setting (what its ratio means), or "" when it has none.
+std::string another_mesh_paragraph(const SolverFrontier& frontier);
 
 Json to_json(const SolverFrontier& frontier);
 SolverFrontier solver_frontier_from_json(const Json& json, const std::string& file);

@@ -342,6 +342,10 @@ void write_frontier_comparison(std::ostringstream& md, const RunData& r, const S
       md << (k == 1 ? "; also by " : ", ") << beating[k]->name;
     md << ".";
   }
+  const FrontierSetting* floor = another_mesh_setting(f);
+  if (floor && floor->rmse_all > 0 && std::isfinite(model_rmse))
+    md << " Its RMSE-all is " << format_number(model_rmse / floor->rmse_all, 3) << "× "
+       << kAnotherMesh << "'s.";
   if (!same_data(m.data, f.data))
     md << " (Rolled out on `" << m.data << "`, the frontier measured on `" << f.data
        << "`: other trajectories.)";
@@ -372,6 +376,8 @@ void write_frontier(std::ostringstream& md, const std::vector<RunData>& runs,
   };
   row(f.ground_truth);
   for (const auto& s : f.settings) row(s);
+  const std::string floor = another_mesh_paragraph(f);
+  if (!floor.empty()) md << "\n" << floor;
   md << "\nEach run against the solver at these settings (solver ms/frame single-threaded, the "
         "model's inference ms/step with its own threads; a setting with unstable solves is not "
         "counted):\n\n";
