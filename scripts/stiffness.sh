@@ -13,7 +13,10 @@
 # default "scene.solver.transfer=apic": FLIP loses draws to inverted particles from ~1 MPa, APIC
 # holds, and one solver for every E keeps the points comparable), STIFF_COST_E (moduli at which only
 # the solver's cost is measured, on STIFF_COST_TRAJECTORIES (6) trajectories each: the solver's
-# side of the crossover on a finer grid of E than training allows; default none)). Resumable: a
+# side of the crossover on a finer grid of E than training allows; default none), STIFF_FRONTIER
+# (the solver re-solving each test split: "all" (default) its cheaper default settings and
+# another_mesh, "floor" another_mesh only, "off"; another_mesh is the same resolution on another
+# background mesh: the data's floor for a model that does not see that mesh)). Resumable: a
 # finished point is kept, and so is a point's dataset generated with the same draw.
 set -euo pipefail
 
@@ -33,6 +36,13 @@ for e in $moduli ${STIFF_COST_E:-}; do
   [[ $e =~ ^[0-9]+([.][0-9]+)?([eE][+]?[0-9]+)?$ ]] ||
     { echo "stiffness: STIFF_E: '$e' is not a positive modulus in Pa" >&2; exit 2; }
 done
+frontier_mode=${STIFF_FRONTIER:-all}
+case $frontier_mode in
+  all) frontier_args=() ;;
+  floor) frontier_args=(--setting another_mesh) ;;
+  off) ;;
+  *) echo "stiffness: STIFF_FRONTIER=$frontier_mode: expected all, floor or off" >&2; exit 2 ;;
+esac
 trajectories=${STIFF_TRAJECTORIES:-100}
 seconds=${STIFF_TRAIN_SECONDS:-360}
 seed=${STIFF_SEED:-0}
@@ -72,6 +82,20 @@ for e in $moduli; do
   "$bsms" rollout "$run" --split test --threads "$threads" --project all
 done
 
+# The solver on each test split at other settings (after the training, which it would slow).
+# Kept when done with the same settings: a regenerated point starts without it.
+if [[ $frontier_mode != off ]]; then
+  for e in $moduli; do
+    point=$out_dir/E$e
+    [[ -f $point/frontier/metrics.json && $(cat "$point/frontier.key" 2>/dev/null) == "$frontier_mode" ]] &&
+      continue
+    rm -rf "$point/frontier"
+    "$bsms" experiment solver-frontier --data "$point/data" --out "$point/frontier" \
+      --threads "$threads" --quiet "${frontier_args[@]}"
+    echo "$frontier_mode" >"$point/frontier.key"
+  done
+fi
+
 # The table: one row per modulus, figures from each run's metrics.json.
 table=$out_dir/stiffness.md
 {
@@ -94,6 +118,23 @@ table=$out_dir/stiffness.md
       def e3: if . == null then "n/a" else (. * 1e3 | round / 1e3 | tostring) end;
       "| \($e) | \(.solver_ms_per_frame | f(1)) | \($redrawn) | \(.infer_ms_per_step | f(2)) | \(.speedup_vs_solver | f(2)) | \(.rmse_all.world_pos | f(4)) | \(.rmse_all_constant_velocity | f(4)) | \(.rmse_all.world_pos / .rmse_all_constant_velocity | e3) | \(.inverted_cells_max * 100 | f(2)) % | \(.validity.model.outside_walls.max | f(4)) | \(.validity.model.overlap.max | f(5)) / \(.validity.truth.overlap.max | f(5)) | \($w[0].rmse_all.world_pos / $w[0].rmse_all_constant_velocity | e3), \($w[0].inverted_cells_max * 100 | f(2)) %, \($w[0].validity.model.overlap.max | f(5)) / \($w[0].validity.truth.overlap.max | f(5)), \($w[0].infer_ms_per_step | f(2)) |"' "$m"
   done
+  if [[ $frontier_mode != off ]]; then
+    echo
+    echo "The solver at other settings on the same test split (\`bsms experiment solver-frontier\`,"
+    echo "single-threaded solves, $(jq -r .threads "$out_dir/E${moduli%% *}/frontier/metrics.json") at once; its ground-truth row timed in the same run). another_mesh: the same"
+    echo "resolution on another background mesh, the data's floor for a model that does not see that mesh."
+    echo
+    echo "| E (Pa) | setting | ms/frame | ratio | unstable | model ratio / setting's |"
+    echo "|---|---|---|---|---|---|"
+    for e in $moduli; do
+      model=$(jq '.rmse_all.world_pos / .rmse_all_constant_velocity' "$out_dir/E$e/bsms-E$e/rollout/metrics.json")
+      jq -r --arg e "$e" --argjson model "$model" '
+        def f(p): if . == null then "n/a" else (. * pow(10; p) | round / pow(10; p) | tostring) end;
+        ([.ground_truth] + .settings)[] |
+        "| \($e) | \(.name) | \(.ms_per_frame | f(1)) | \(.rmse_all_over_constant_velocity | f(4)) | \(.unstable) | \(if (.rmse_all_over_constant_velocity // 0) > 0 then ($model / .rmse_all_over_constant_velocity | f(2)) else "–" end) |"' \
+        "$out_dir/E$e/frontier/metrics.json"
+    done
+  fi
 } >"$table.tmp"
 mv "$table.tmp" "$table"
 

@@ -214,8 +214,9 @@ void add_solver_frontier(CLI::App& experiment) {
       ->check(CLI::NonNegativeNumber);
   f->add_option("--setting", o->settings,
                 "NAME=scene.KEY=VALUE[,scene.KEY=VALUE...] (or sample.KEY=VALUE): a named "
-                "solver setting (repeatable; default: background x1.5 and x2, CFL x2 and "
-                "x3, particle spacing x1.5)");
+                "solver setting, or the NAME of a default one (repeatable; default: "
+                "background_x1.5, background_x2, cfl_x2, cfl_x3, spacing_x1.5 and another_mesh: "
+                "the same resolution on another background mesh, the data's floor for a model)");
   f->add_flag("--quiet", o->quiet, "no progress bar");
   bsms::cli::add_threads_option(*f, o->threads);
   f->footer(

@@ -260,10 +260,10 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
   o.out = fresh_dir("out").string();
   o.threads = 2;
   o.quiet = true;
-  // another_mesh at the default factor: the same resolution on a mesh gmsh lays out otherwise.
+  // A bare name picks that default setting: another_mesh, the same resolution on a mesh gmsh
+  // lays out otherwise.
   o.settings = {"coarse=scene.background.element_size=0.09", "sparse=sample.spacing=0.06",
-                std::string(kAnotherMesh) +
-                    "=scene.background.element_size=" + std::to_string(0.06 * kAnotherMeshFactor)};
+                kAnotherMesh};
   const SolverFrontier r = solver_frontier_experiment(o);
   EXPECT_EQ(r.trajectories, 3);
   EXPECT_EQ(r.frames, 10);
@@ -281,6 +281,8 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
   EXPECT_EQ(coarse.assignments, std::vector<std::string>{"scene.background.element_size=0.09"});
   EXPECT_FALSE(coarse.interpolated);
   EXPECT_TRUE(sparse.interpolated);  // other particles: read at the stored nodes
+  EXPECT_EQ(remeshed.assignments,
+            std::vector<std::string>{"scene.background.element_size=0.06084"});
   for (const FrontierSetting* s : {&coarse, &sparse, &remeshed}) {
     EXPECT_EQ(s->unstable, 0);
     EXPECT_TRUE(std::isfinite(s->rmse_all) && s->rmse_all > 1e-6) << s->name;
@@ -328,6 +330,19 @@ TEST(SolverFrontier, GroundTruthReproducesTheDataAndCheaperSettingsDoNot) {
     ADD_FAILURE() << "an unknown key was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("solver.cfll"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(o.out));
+  // So is a bare name that is not a default setting, naming the ones there are.
+  o.settings = {"cfl_x9"};
+  try {
+    solver_frontier_experiment(o);
+    ADD_FAILURE() << "an unknown default setting was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("cfl_x9: not a default setting"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("cfl_x2, cfl_x3, spacing_x1.5, another_mesh"),
+              std::string::npos)
+        << e.what();
   }
   EXPECT_FALSE(fs::exists(o.out));
 }

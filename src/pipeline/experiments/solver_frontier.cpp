@@ -439,10 +439,47 @@ std::vector<SolverSetting> default_solver_settings(const Json& family, const std
   return out;
 }
 
+namespace {
+
+// `settings` as given, each bare name (no assignments yet) replaced by that default setting of
+// `family` (the config in `manifest`); all the defaults, with their notes, when none is given.
+std::vector<SolverSetting> resolve_settings(std::vector<SolverSetting> settings, const Json& family,
+                                            const std::string& manifest,
+                                            std::vector<std::string>& notes) {
+  std::vector<std::string> default_notes;
+  const std::vector<SolverSetting> defaults =
+      default_solver_settings(family, manifest + " (config)", default_notes);
+  if (settings.empty()) {
+    notes = default_notes;
+    return defaults;
+  }
+  for (SolverSetting& s : settings) {
+    if (!s.assignments.empty()) continue;
+    const auto it = std::find_if(defaults.begin(), defaults.end(),
+                                 [&s](const SolverSetting& d) { return d.name == s.name; });
+    if (it == defaults.end()) {
+      std::string known;
+      for (const auto& d : defaults) known += (known.empty() ? "" : ", ") + d.name;
+      throw InputError("--setting " + s.name + ": not a default setting of " + manifest +
+                       "'s family (" + (known.empty() ? std::string("it has none") : known) +
+                       "); give NAME=scene.KEY=VALUE");
+    }
+    s = *it;
+  }
+  return settings;
+}
+
+}  // namespace
+
 SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   if (o.out.empty()) throw InputError("solver-frontier: --out is required");
+  // A bare NAME is one of the default settings, looked up once the family is read: its
+  // assignments stay empty until then.
   std::vector<SolverSetting> settings;
-  for (const std::string& text : o.settings) settings.push_back(parse_solver_setting(text));
+  for (const std::string& text : o.settings)
+    settings.push_back(text.find('=') == std::string::npos && setting_name_ok(text)
+                           ? SolverSetting{text, {}}
+                           : parse_solver_setting(text));
   {
     std::set<std::string> names;
     for (const auto& s : settings)
@@ -457,9 +494,7 @@ SolverFrontier solver_frontier_experiment(const SolverFrontierOptions& o) {
   if (!gen.contains("config") || !gen["config"].is_object())
     throw InputError(manifest.string() + ": key config: expected the family config object");
   SolverFrontier result;
-  if (settings.empty())
-    settings =
-        default_solver_settings(gen["config"], manifest.string() + " (config)", result.notes);
+  settings = resolve_settings(std::move(settings), gen["config"], manifest.string(), result.notes);
   if (settings.empty())
     throw InputError(manifest.string() + ": no default setting applies; give --setting");
   // Every setting checked (unknown keys, bad values) before any solve.

@@ -39,7 +39,8 @@ struct SolverFrontierOptions {
   int threads = 0;               // solves at once, each single-threaded (0: hardware threads)
   bool quiet = false;
   // "NAME=KEY=VALUE[,KEY=VALUE...]", KEY a key of the family file under scene. or sample. (e.g.
-  // "coarse=scene.background.element_size=0.06"); empty: default_solver_settings.
+  // "coarse=scene.background.element_size=0.06"), or a bare NAME of one of
+  // default_solver_settings (e.g. "another_mesh"); empty: all of default_solver_settings.
   std::vector<std::string> settings;
 };
 
