@@ -5,8 +5,8 @@
 #include "cli/command.hpp"
 #include "cli/programs.hpp"
 #include "core/error.hpp"
-#include "pipeline/train/legacy_checkpoint.hpp"
 #include "pipeline/adapters/simulator.hpp"
+#include "pipeline/train/legacy_checkpoint.hpp"
 #include "pipeline/train/trainer.hpp"
 
 namespace {

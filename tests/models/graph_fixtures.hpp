@@ -110,8 +110,9 @@ inline ReferenceMultilevel reference_multilevel(const CsrGraph& mesh_graph, int 
   return out;
 }
 
-// The tensors of a reference multilevel graph, assembled as src/pipeline/graphs/multilevel_tensors.hpp
-// assembles them from a MultilevelGraph (transitions[0] empty, transitions[k] joins k-1 and k).
+// The tensors of a reference multilevel graph, assembled as
+// src/pipeline/graphs/multilevel_tensors.hpp assembles them from a MultilevelGraph (transitions[0]
+// empty, transitions[k] joins k-1 and k).
 inline MultilevelTensors reference_tensors(const ReferenceMultilevel& graph) {
   MultilevelTensors h;
   for (size_t k = 0; k < graph.levels.size(); ++k) {

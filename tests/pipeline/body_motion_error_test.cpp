@@ -1,7 +1,7 @@
 // The rollout's split of position error into each body's centre, rotation and deformation
-// (pipeline/rollout/body_motion_error.hpp): rigid motions land in centre and rotation only, the parts add
-// up to the position MSE, the deformation is the minimum over rotations (against a brute-force
-// search), and a mirror image is not a rotation.
+// (pipeline/rollout/body_motion_error.hpp): rigid motions land in centre and rotation only, the
+// parts add up to the position MSE, the deformation is the minimum over rotations (against a
+// brute-force search), and a mirror image is not a rotation.
 #include "pipeline/rollout/body_motion_error.hpp"
 
 #include <gtest/gtest.h>

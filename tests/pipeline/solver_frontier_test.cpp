@@ -490,8 +490,7 @@ TEST(SolverFrontier, ReportDrawsTheFrontierAndSaysWhetherASettingBeatsEachRun) {
   // Re-solves lost on the other mesh are counted; one with no stable solve says nothing.
   same.settings.back().rmse_all = 0.01;
   same.settings.back().unstable = 1;
-  EXPECT_NE(another_mesh_paragraph(same).find("1 of 2 re-solves inverted a particle"),
-            std::string::npos)
+  EXPECT_NE(another_mesh_paragraph(same).find("1 of 2 re-solves were unstable"), std::string::npos)
       << another_mesh_paragraph(same);
   same.settings.back().rmse_all = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(another_mesh_setting(same), nullptr);

@@ -183,7 +183,7 @@ std::string another_mesh_paragraph(const SolverFrontier& f) {
   // Stiff scenes lose a few re-solves on another mesh; the floor is still what the others say.
   if (s->unstable > 0)
     md << " (Over the trajectories it solved: " << s->unstable << " of " << f.trajectories
-       << " re-solves inverted a particle.)";
+       << " re-solves were unstable.)";
   md << "\n";
   return md.str();
 }
